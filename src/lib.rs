@@ -1,0 +1,4 @@
+//! Nusselt: diffuse global illumination by the radiosity method.
+//!
+//! Core modules (`scene` … `render`) never depend on a GUI or GPU crate.
+pub mod geometry;
