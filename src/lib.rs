@@ -2,3 +2,4 @@
 //!
 //! Core modules (`scene` … `render`) never depend on a GUI or GPU crate.
 pub mod geometry;
+pub mod scene;
