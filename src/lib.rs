@@ -2,4 +2,5 @@
 //!
 //! Core modules (`scene` … `render`) never depend on a GUI or GPU crate.
 pub mod geometry;
+pub mod mesh;
 pub mod scene;
