@@ -1,6 +1,7 @@
 //! Nusselt: diffuse global illumination by the radiosity method.
 //!
 //! Core modules (`scene` … `render`) never depend on a GUI or GPU crate.
+pub mod formfactor;
 pub mod geometry;
 pub mod mesh;
 pub mod scene;

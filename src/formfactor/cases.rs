@@ -1,0 +1,180 @@
+//! Form-factor test cases in the JSON format of the reference catalogue: polygons `A1`,
+//! `A2` (counter-clockwise seen from the front, fronts facing each other), or a differential
+//! receiver `point` + `point_normal`, and optional `occluders` (a list of polygons).
+
+use std::path::Path;
+
+use glam::DVec3;
+use serde::Deserialize;
+
+use super::contour;
+use super::{FormFactorMethod, FormFactorParams, PolygonSampler, visibility_fraction};
+use crate::geometry::bvh::TriangleInput;
+use crate::geometry::{Bvh, Rng, polygon};
+
+#[derive(Clone, Debug, Deserialize)]
+pub struct Case {
+    pub name: String,
+    #[serde(rename = "A1", default)]
+    pub a1: Vec<[f64; 3]>,
+    #[serde(rename = "A2")]
+    pub a2: Vec<[f64; 3]>,
+    #[serde(default)]
+    pub point: Option<[f64; 3]>,
+    #[serde(default)]
+    pub point_normal: Option<[f64; 3]>,
+    #[serde(default)]
+    pub occluders: Vec<Vec<[f64; 3]>>,
+    /// The exact value, when the file has one (ignored by evaluation).
+    #[serde(default)]
+    pub exact: Option<f64>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum CaseError {
+    #[error("cannot read {path}: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {message}")]
+    Format { path: String, message: String },
+}
+
+fn to_vecs(p: &[[f64; 3]]) -> Vec<DVec3> {
+    p.iter().map(|v| DVec3::from_array(*v)).collect()
+}
+
+/// Reads a case file (a JSON array of cases) and checks each case's polygons.
+pub fn load(path: &Path) -> Result<Vec<Case>, CaseError> {
+    let text = std::fs::read_to_string(path).map_err(|source| CaseError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    let p = path.display().to_string();
+    let cases: Vec<Case> = serde_json::from_str(&text).map_err(|e| CaseError::Format {
+        path: p.clone(),
+        message: format!("line {}: {e}", e.line()),
+    })?;
+    for c in &cases {
+        let bad = |m: &str| CaseError::Format {
+            path: p.clone(),
+            message: format!("case '{}': {m}", c.name),
+        };
+        let finite = |poly: &[[f64; 3]]| poly.iter().flatten().all(|x| x.is_finite());
+        if c.a2.len() < 3 || polygon::normal(&to_vecs(&c.a2)).is_none() || !finite(&c.a2) {
+            return Err(bad("A2 must be a polygon of at least 3 finite, non-collinear vertices"));
+        }
+        if c.point.is_none() && (c.a1.len() < 3 || polygon::normal(&to_vecs(&c.a1)).is_none() || !finite(&c.a1)) {
+            return Err(bad("A1 must be a polygon (or give point and point_normal)"));
+        }
+        if c.point.is_some() && c.point_normal.and_then(|n| DVec3::from_array(n).try_normalize()).is_none() {
+            return Err(bad("point_normal must be a non-zero vector"));
+        }
+        if c.occluders.iter().any(|o| o.len() < 3 || !finite(o)) {
+            return Err(bad("each occluder must be a polygon of at least 3 finite vertices"));
+        }
+    }
+    Ok(cases)
+}
+
+/// Evaluates one case with one method: F from A1 (or the point) to A2.
+pub fn evaluate(case: &Case, method: FormFactorMethod, params: &FormFactorParams) -> f64 {
+    let a2 = to_vecs(&case.a2);
+    let occluders: Vec<Vec<DVec3>> = case.occluders.iter().map(|o| to_vecs(o)).collect();
+    let bvh = occluder_bvh(&occluders);
+    let scale = polygon::area(&a2).sqrt();
+    let m = ((params.visibility_rays.max(1) as f64).sqrt().round() as u32).max(1);
+    let eps = 1e-9 * scale.max(1e-12);
+    let sampler = PolygonSampler::new(&a2);
+    let point_value = |p: DVec3, n: DVec3, rng: &mut Rng| {
+        let f = contour::point_to_polygon(p, n, &a2);
+        if f <= 0.0 || occluders.is_empty() {
+            f
+        } else {
+            f * visibility_fraction(&bvh, p, n, &sampler, m, eps, rng)
+        }
+    };
+    let mut rng = Rng::new(params.seed, 0);
+    match method {
+        FormFactorMethod::Contour => {
+            if let (Some(p), Some(n)) = (case.point, case.point_normal) {
+                let n = DVec3::from_array(n).try_normalize().unwrap_or(DVec3::Z);
+                return point_value(DVec3::from_array(p), n, &mut rng);
+            }
+            let a1 = to_vecs(&case.a1);
+            integrate_over(&a1, &mut |p, n| point_value(p, n, &mut rng))
+        }
+    }
+}
+
+fn occluder_bvh(occluders: &[Vec<DVec3>]) -> Bvh {
+    let mut tris = Vec::new();
+    for (i, o) in occluders.iter().enumerate() {
+        for t in polygon::triangulate(o) {
+            tris.push(TriangleInput {
+                vertices: [o[t[0]], o[t[1]], o[t[2]]],
+                id: i as u32,
+                cull_back: false,
+            });
+        }
+    }
+    Bvh::build(&tris)
+}
+
+/// Gauss–Legendre nodes and weights on [0, 1], 6 points.
+const GL: [(f64, f64); 6] = [
+    (0.033_765_242_898_423_98, 0.085_662_246_189_585_17),
+    (0.169_395_306_766_867_74, 0.180_380_786_524_069_3),
+    (0.380_690_406_958_401_56, 0.233_956_967_286_345_5),
+    (0.619_309_593_041_598_4, 0.233_956_967_286_345_5),
+    (0.830_604_693_233_132_3, 0.180_380_786_524_069_3),
+    (0.966_234_757_101_576, 0.085_662_246_189_585_17),
+];
+
+/// Area-average of `f` over polygon `a1` by adaptive Gauss–Legendre cubature (Duffy map of
+/// each triangle to the unit square, cells split until halves agree to 1e-10 relative).
+pub fn integrate_over(a1: &[DVec3], f: &mut dyn FnMut(DVec3, DVec3) -> f64) -> f64 {
+    let n = polygon::normal(a1).unwrap_or(DVec3::Z);
+    let total_area = polygon::area(a1);
+    let mut sum = 0.0;
+    for t in polygon::triangulate(a1) {
+        let (a, b, c) = (a1[t[0]], a1[t[1]], a1[t[2]]);
+        let jac = 2.0 * polygon::area(&[a, b, c]);
+        // Duffy: (u, v) ∈ [0,1]² → a + u(b − a) + uv(c − b), Jacobian u·jac.
+        let mut g = |u: f64, v: f64| f(a + (b - a) * u + (c - b) * (u * v), n) * u * jac;
+        sum += adapt(&mut g, 0.0, 0.0, 1.0, None, 0);
+    }
+    sum / total_area
+}
+
+fn cell(g: &mut dyn FnMut(f64, f64) -> f64, u0: f64, v0: f64, h: f64) -> f64 {
+    let mut s = 0.0;
+    for (x, wx) in GL {
+        for (y, wy) in GL {
+            s += wx * wy * g(u0 + x * h, v0 + y * h);
+        }
+    }
+    s * h * h
+}
+
+fn adapt(g: &mut dyn FnMut(f64, f64) -> f64, u0: f64, v0: f64, h: f64, whole: Option<f64>, depth: u32) -> f64 {
+    let whole = whole.unwrap_or_else(|| cell(g, u0, v0, h));
+    let hh = h * 0.5;
+    let parts = [
+        cell(g, u0, v0, hh),
+        cell(g, u0 + hh, v0, hh),
+        cell(g, u0, v0 + hh, hh),
+        cell(g, u0 + hh, v0 + hh, hh),
+    ];
+    let split: f64 = parts.iter().sum();
+    if depth >= 9 || (split - whole).abs() <= 1e-11 * split.abs().max(1e-300) + 1e-15 * h * h {
+        return split;
+    }
+    let offs = [(0.0, 0.0), (hh, 0.0), (0.0, hh), (hh, hh)];
+    offs.iter()
+        .zip(parts)
+        .map(|((du, dv), p)| adapt(g, u0 + du, v0 + dv, hh, Some(p), depth + 1))
+        .sum()
+}
