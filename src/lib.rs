@@ -5,3 +5,4 @@ pub mod formfactor;
 pub mod geometry;
 pub mod mesh;
 pub mod scene;
+pub mod solver;

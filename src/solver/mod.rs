@@ -1,0 +1,451 @@
+//! Progressive refinement radiosity with substructuring and the ambient term
+//! (Cohen, Chen, Wallace, Greenberg 1988, "A progressive refinement approach to fast
+//! radiosity image generation").
+//!
+//! Each shot takes the patch with the largest unshot power `|ΔB_i|·A_i` (channel sum) and
+//! distributes it to every element: `ΔB_j = ρ_j ΔB_i F_ji`. Elements keep their *incident*
+//! radiance `H_j = Σ ΔB_i F_ji` so that `B_j = E_j + ρ_j H_j`; a material edit then becomes a
+//! (possibly negative) unshot delta and the solution adapts without restarting. The ambient
+//! term `R · Σ ΔB_i A_i / Σ A_i`, `R = 1/(1 − ρ_avg)`, is for display only.
+//!
+//! All sums are `f64`. Rows of form factors are cached per shooting patch (up to a memory
+//! budget), so a patch that shoots again costs one pass over the elements. Results depend
+//! only on the scene, the settings and the seed, not on thread count or timing.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use glam::DVec3;
+
+use crate::formfactor::{self, FormFactorMethod, FormFactorParams, RowContext};
+use crate::geometry::{Bvh, Ray};
+use crate::mesh::{self, Mesh, MeshError, PatchId};
+use crate::scene::{MaterialId, Rgb, Scene};
+
+#[derive(Clone, Debug)]
+pub struct SolverConfig {
+    /// Element edge length; `None` = [`mesh::default_element_size`].
+    pub element_size: Option<f64>,
+    pub method: FormFactorMethod,
+    pub formfactor: FormFactorParams,
+    /// Memory for cached form-factor rows, in bytes.
+    pub row_cache_bytes: usize,
+}
+
+impl Default for SolverConfig {
+    fn default() -> Self {
+        Self {
+            element_size: None,
+            method: FormFactorMethod::Contour,
+            formfactor: FormFactorParams::default(),
+            row_cache_bytes: 512 << 20,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum SolverError {
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    #[error("material {0} does not exist")]
+    NoSuchMaterial(u32),
+    #[error("{what} must be finite and {range}, got {value:?}")]
+    BadValue {
+        what: &'static str,
+        range: &'static str,
+        value: [f64; 3],
+    },
+}
+
+/// When to stop [`ProgressiveSolver::run`].
+#[derive(Clone, Copy, Debug)]
+pub struct StopCriteria {
+    /// Remaining unshot power over emitted power.
+    pub unshot: f64,
+    pub max_shots: Option<usize>,
+    pub max_seconds: Option<f64>,
+}
+
+impl Default for StopCriteria {
+    fn default() -> Self {
+        Self {
+            unshot: 1e-4,
+            max_shots: None,
+            max_seconds: None,
+        }
+    }
+}
+
+/// One row of the convergence log.
+#[derive(Clone, Copy, Debug)]
+pub struct ShotRecord {
+    pub shot: usize,
+    pub seconds: f64,
+    pub unshot_fraction: f64,
+    /// Channel mean of the ambient term.
+    pub ambient: f64,
+    pub shooter: PatchId,
+}
+
+pub struct ProgressiveSolver {
+    scene: Scene,
+    config: SolverConfig,
+    mesh: Mesh,
+    bvh: Bvh,
+    epsilon: f64,
+    /// Per element.
+    radiosity: Vec<Rgb>,
+    incident: Vec<Rgb>,
+    /// Per patch, radiance units.
+    unshot: Vec<Rgb>,
+    rows: Vec<Option<Arc<[f32]>>>,
+    cached_bytes: usize,
+    shots: usize,
+    last_shooter: Option<PatchId>,
+    total_area: f64,
+    /// Σ |E_i| A_i (channel sum) at the last (re)start, the denominator of unshot fractions.
+    emitted_power: f64,
+}
+
+fn channel_sum(c: Rgb) -> f64 {
+    c.x.abs() + c.y.abs() + c.z.abs()
+}
+
+impl ProgressiveSolver {
+    pub fn new(scene: Scene, config: SolverConfig) -> Result<Self, SolverError> {
+        let size = config
+            .element_size
+            .unwrap_or_else(|| mesh::default_element_size(&scene));
+        let mesh = Mesh::build(&scene, size)?;
+        let bvh = Bvh::build(&mesh.patch_triangles());
+        let epsilon = 1e-6 * mesh.bounds().diagonal().max(1e-12);
+        let mut s = Self {
+            scene,
+            config,
+            mesh,
+            bvh,
+            epsilon,
+            radiosity: Vec::new(),
+            incident: Vec::new(),
+            unshot: Vec::new(),
+            rows: Vec::new(),
+            cached_bytes: 0,
+            shots: 0,
+            last_shooter: None,
+            total_area: 0.0,
+            emitted_power: 0.0,
+        };
+        s.reset();
+        Ok(s)
+    }
+
+    /// Back to the dark start: only emitters have radiance, nothing has been shot.
+    /// Cached form factors are kept (the geometry did not change).
+    pub fn reset(&mut self) {
+        let n = self.mesh.elements.len();
+        self.incident = vec![Rgb::ZERO; n];
+        self.radiosity = self
+            .mesh
+            .elements
+            .iter()
+            .map(|e| self.material_of(e.patch).emission)
+            .collect();
+        self.unshot = self
+            .mesh
+            .patches
+            .iter()
+            .map(|p| self.scene.materials[p.material.0 as usize].emission)
+            .collect();
+        if self.rows.len() != self.mesh.patches.len() {
+            self.rows = vec![None; self.mesh.patches.len()];
+            self.cached_bytes = 0;
+        }
+        self.shots = 0;
+        self.last_shooter = None;
+        self.total_area = self.mesh.patches.iter().map(|p| p.area).sum();
+        self.emitted_power = self.current_emitted_power();
+    }
+
+    fn current_emitted_power(&self) -> f64 {
+        self.mesh
+            .patches
+            .iter()
+            .map(|p| channel_sum(self.scene.materials[p.material.0 as usize].emission) * p.area)
+            .sum()
+    }
+
+    fn material_of(&self, patch: PatchId) -> &crate::scene::Material {
+        &self.scene.materials[self.mesh.patch(patch).material.0 as usize]
+    }
+
+    /// Rebuilds the mesh with a new element size and restarts from dark.
+    pub fn remesh(&mut self, element_size: f64) -> Result<(), SolverError> {
+        let mesh = Mesh::build(&self.scene, element_size)?;
+        self.bvh = Bvh::build(&mesh.patch_triangles());
+        self.mesh = mesh;
+        self.config.element_size = Some(element_size);
+        self.rows.clear();
+        self.reset();
+        Ok(())
+    }
+
+    /// Switches the form-factor method (clears cached rows, restarts from dark).
+    pub fn set_method(&mut self, method: FormFactorMethod) {
+        self.config.method = method;
+        self.rows.clear();
+        self.reset();
+    }
+
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+    pub fn mesh(&self) -> &Mesh {
+        &self.mesh
+    }
+    pub fn config(&self) -> &SolverConfig {
+        &self.config
+    }
+    pub fn bvh(&self) -> &Bvh {
+        &self.bvh
+    }
+    pub fn shots(&self) -> usize {
+        self.shots
+    }
+    pub fn last_shooter(&self) -> Option<PatchId> {
+        self.last_shooter
+    }
+    /// Radiosity (radiance units) per element, without the ambient term.
+    pub fn radiosity(&self) -> &[Rgb] {
+        &self.radiosity
+    }
+
+    /// Unshot radiance per patch.
+    pub fn unshot(&self) -> &[Rgb] {
+        &self.unshot
+    }
+
+    /// Remaining unshot power over emitted power (channel sums).
+    pub fn unshot_fraction(&self) -> f64 {
+        let remaining: f64 = self
+            .unshot
+            .iter()
+            .zip(&self.mesh.patches)
+            .map(|(u, p)| channel_sum(*u) * p.area)
+            .sum();
+        if self.emitted_power > 0.0 {
+            remaining / self.emitted_power
+        } else if remaining > 0.0 {
+            f64::INFINITY
+        } else {
+            0.0
+        }
+    }
+
+    /// The ambient term (Cohen et al. 1988): an estimate of the light not yet shot.
+    pub fn ambient(&self) -> Rgb {
+        if self.total_area <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let mut rho = Rgb::ZERO;
+        let mut unshot = Rgb::ZERO;
+        for (p, u) in self.mesh.patches.iter().zip(&self.unshot) {
+            rho += self.scene.materials[p.material.0 as usize].reflectance * p.area;
+            unshot += *u * p.area;
+        }
+        let rho_avg = rho / self.total_area;
+        let r = Rgb::ONE / (Rgb::ONE - rho_avg).max(Rgb::splat(1e-6));
+        r * unshot / self.total_area
+    }
+
+    /// Per-element radiance for display: `B_j + ρ_j · ambient` when `with_ambient`.
+    pub fn element_radiance(&self, with_ambient: bool) -> Vec<Rgb> {
+        let ambient = if with_ambient { self.ambient() } else { Rgb::ZERO };
+        self.mesh
+            .elements
+            .iter()
+            .zip(&self.radiosity)
+            .map(|(e, b)| *b + self.material_of(e.patch).reflectance * ambient)
+            .collect()
+    }
+
+    /// Per display vertex radiance (see [`Mesh::vertex_values`]).
+    pub fn vertex_radiance(&self, with_ambient: bool) -> Vec<[f32; 3]> {
+        self.mesh
+            .vertex_values(&self.element_radiance(with_ambient))
+            .into_iter()
+            .map(|v| v.as_vec3().to_array())
+            .collect()
+    }
+
+    /// The patch with the largest unshot power, if any power is left.
+    pub fn next_shooter(&self) -> Option<PatchId> {
+        let mut best: Option<(f64, usize)> = None;
+        for (i, (u, p)) in self.unshot.iter().zip(&self.mesh.patches).enumerate() {
+            let power = channel_sum(*u) * p.area;
+            if power > 0.0 && best.is_none_or(|b| power > b.0) {
+                best = Some((power, i));
+            }
+        }
+        best.map(|b| PatchId(b.1 as u32))
+    }
+
+    fn row(&mut self, shooter: PatchId, cancel: &AtomicBool) -> Option<Arc<[f32]>> {
+        if let Some(r) = &self.rows[shooter.0 as usize] {
+            return Some(r.clone());
+        }
+        let mut out = vec![0f32; self.mesh.elements.len()];
+        let ctx = RowContext {
+            mesh: &self.mesh,
+            bvh: &self.bvh,
+            params: &self.config.formfactor,
+            epsilon: self.epsilon,
+        };
+        if !formfactor::compute_row(self.config.method, &ctx, shooter, &mut out, cancel) {
+            return None;
+        }
+        let row: Arc<[f32]> = out.into();
+        let bytes = row.len() * 4;
+        if self.cached_bytes + bytes <= self.config.row_cache_bytes {
+            self.cached_bytes += bytes;
+            self.rows[shooter.0 as usize] = Some(row.clone());
+        }
+        Some(row)
+    }
+
+    /// One shot from the patch with the most unshot power. Returns the shooter, or `None`
+    /// when nothing is left to shoot or `cancel` was set (then nothing changed).
+    pub fn shoot(&mut self, cancel: &AtomicBool) -> Option<PatchId> {
+        let shooter = self.next_shooter()?;
+        let row = self.row(shooter, cancel)?;
+        if cancel.load(Ordering::Relaxed) {
+            return None;
+        }
+        let delta = self.unshot[shooter.0 as usize];
+        self.unshot[shooter.0 as usize] = Rgb::ZERO;
+        let mut gained = vec![Rgb::ZERO; self.mesh.patches.len()];
+        for (j, e) in self.mesh.elements.iter().enumerate() {
+            let f = row[j] as f64;
+            if f == 0.0 {
+                continue;
+            }
+            let rho = self.scene.materials[self.mesh.patches[e.patch.0 as usize].material.0 as usize]
+                .reflectance;
+            let h = delta * f;
+            self.incident[j] += h;
+            let db = rho * h;
+            self.radiosity[j] += db;
+            gained[e.patch.0 as usize] += db * e.area;
+        }
+        for ((u, g), p) in self.unshot.iter_mut().zip(&gained).zip(&self.mesh.patches) {
+            *u += *g / p.area;
+        }
+        debug_assert!(self.radiosity.iter().all(|b| b.is_finite()));
+        self.shots += 1;
+        self.last_shooter = Some(shooter);
+        Some(shooter)
+    }
+
+    /// Shoots until `stop` is met; calls `on_shot` after each shot.
+    pub fn run(
+        &mut self,
+        stop: &StopCriteria,
+        cancel: &AtomicBool,
+        on_shot: &mut dyn FnMut(&ShotRecord),
+    ) {
+        let start = Instant::now();
+        loop {
+            if self.unshot_fraction() <= stop.unshot
+                || stop.max_shots.is_some_and(|n| self.shots >= n)
+                || stop.max_seconds.is_some_and(|s| start.elapsed().as_secs_f64() >= s)
+            {
+                return;
+            }
+            let Some(shooter) = self.shoot(cancel) else { return };
+            let ambient = self.ambient();
+            on_shot(&ShotRecord {
+                shot: self.shots,
+                seconds: start.elapsed().as_secs_f64(),
+                unshot_fraction: self.unshot_fraction(),
+                ambient: (ambient.x + ambient.y + ambient.z) / 3.0,
+                shooter,
+            });
+        }
+    }
+
+    /// Changes a material's reflectance and emission; the difference becomes unshot
+    /// radiance, so shooting continues from the current state instead of from dark.
+    pub fn set_material(
+        &mut self,
+        id: MaterialId,
+        reflectance: Rgb,
+        emission: Rgb,
+    ) -> Result<(), SolverError> {
+        let idx = id.0 as usize;
+        if idx >= self.scene.materials.len() {
+            return Err(SolverError::NoSuchMaterial(id.0));
+        }
+        let max = crate::scene::MAX_REFLECTANCE;
+        if !reflectance.is_finite() || reflectance.min_element() < 0.0 || reflectance.max_element() > max {
+            return Err(SolverError::BadValue {
+                what: "reflectance",
+                range: "in [0, 0.999]",
+                value: reflectance.to_array(),
+            });
+        }
+        if !emission.is_finite() || emission.min_element() < 0.0 {
+            return Err(SolverError::BadValue {
+                what: "emission",
+                range: ">= 0",
+                value: emission.to_array(),
+            });
+        }
+        self.scene.materials[idx].reflectance = reflectance;
+        self.scene.materials[idx].emission = emission;
+        let mut gained = vec![Rgb::ZERO; self.mesh.patches.len()];
+        for (j, e) in self.mesh.elements.iter().enumerate() {
+            let p = &self.mesh.patches[e.patch.0 as usize];
+            if p.material != id {
+                continue;
+            }
+            let new = emission + reflectance * self.incident[j];
+            gained[e.patch.0 as usize] += (new - self.radiosity[j]) * e.area;
+            self.radiosity[j] = new;
+        }
+        for ((u, g), p) in self.unshot.iter_mut().zip(&gained).zip(&self.mesh.patches) {
+            *u += *g / p.area;
+        }
+        self.emitted_power = self.current_emitted_power().max(f64::MIN_POSITIVE);
+        Ok(())
+    }
+
+    /// The front-facing patch hit by a ray, if any (for picking in a viewer).
+    pub fn pick(&self, origin: DVec3, dir: DVec3) -> Option<PatchId> {
+        let hit = self.bvh.closest_hit(&Ray::new(origin, dir), 0.0, f64::INFINITY)?;
+        let id = PatchId(hit.id);
+        if hit.front || !self.scene.two_sided {
+            return Some(id);
+        }
+        // Back of a two-sided face: its back patch follows the front patch.
+        let next = PatchId(hit.id + 1);
+        (next.0 < self.mesh.patches.len() as u32 && self.mesh.patch(next).back).then_some(next).or(Some(id))
+    }
+
+    /// Incident radiance per element, `H_j = Σ ΔB_i F_ji` over all shots.
+    pub fn incident(&self) -> &[Rgb] {
+        &self.incident
+    }
+
+    /// Emitted power Σ E·A and absorbed power Σ (1 − ρ)·H·A over elements. In a closed
+    /// enclosure they are equal at convergence.
+    pub fn power_balance(&self) -> (Rgb, Rgb) {
+        let mut emitted = Rgb::ZERO;
+        let mut absorbed = Rgb::ZERO;
+        for (e, h) in self.mesh.elements.iter().zip(&self.incident) {
+            let m = self.material_of(e.patch);
+            emitted += m.emission * e.area;
+            absorbed += (Rgb::ONE - m.reflectance) * *h * e.area;
+        }
+        (emitted, absorbed)
+    }
+}

@@ -1,0 +1,87 @@
+//! Furnace and power-balance identities of the progressive solver.
+
+use std::sync::atomic::AtomicBool;
+
+use glam::DVec3;
+use nusselt::scene::{LoadOptions, Scene};
+use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+
+fn furnace(rho: f64, size: f64) -> ProgressiveSolver {
+    let scene = Scene::builtin("furnace", &LoadOptions { rho: Some(rho), ..Default::default() })
+        .expect("furnace scene");
+    ProgressiveSolver::new(scene, SolverConfig { element_size: Some(size), ..Default::default() })
+        .expect("solver")
+}
+
+fn max_rel_error(values: &[DVec3], exact: f64) -> f64 {
+    values
+        .iter()
+        .map(|v| (*v - DVec3::splat(exact)).abs().max_element() / exact)
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn furnace_converges_to_e_over_one_minus_rho() {
+    let never = AtomicBool::new(false);
+    for rho in [0.5, 0.9, 0.99, 0.999] {
+        let mut s = furnace(rho, 0.25);
+        let exact = 1.0 / (1.0 - rho);
+        // Before any shot the ambient term alone gives the exact answer in a furnace.
+        assert!(max_rel_error(&s.element_radiance(true), exact) < 1e-3, "rho {rho} at start");
+        let raw0 = max_rel_error(&s.element_radiance(false), exact);
+        s.run(&StopCriteria { max_shots: Some(6), ..Default::default() }, &never, &mut |_| {});
+        let early = max_rel_error(&s.element_radiance(true), exact);
+        let raw = max_rel_error(&s.element_radiance(false), exact);
+        eprintln!("rho {rho}: after 6 shots ambient-corrected error {early:.2e}, raw {raw:.2e} (start raw {raw0:.2e})");
+        assert!(early < 0.2 * raw, "ambient must correct most of the early error");
+        s.run(&StopCriteria { unshot: 1e-4 * (1.0 - rho), ..Default::default() }, &never, &mut |_| {});
+        let err = max_rel_error(s.radiosity(), exact);
+        eprintln!("rho {rho}: {} shots, max element error {err:.2e}", s.shots());
+        assert!(err < 1e-3, "rho {rho}: error {err}");
+    }
+}
+
+const BOX_OBJ: &str = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+usemtl lamp\nf 1 5 6 2\nusemtl a\nf 4 3 7 8\nf 1 2 3 4\nusemtl b\nf 5 8 7 6\nf 1 4 8 5\nusemtl c\nf 2 6 7 3\n";
+
+/// A closed cube where only the floor emits.
+fn partial_emission_box(mtl: &str) -> ProgressiveSolver {
+    let scene = Scene::from_obj_str("box.obj", BOX_OBJ, &[("m.mtl", mtl)], &LoadOptions::default())
+        .expect("scene");
+    let mut s = ProgressiveSolver::new(scene, SolverConfig { element_size: Some(0.1), ..Default::default() })
+        .expect("solver");
+    s.run(&StopCriteria { unshot: 1e-7, ..Default::default() }, &AtomicBool::new(false), &mut |_| {});
+    s
+}
+
+#[test]
+fn power_balances_with_partial_emission_and_uniform_rho() {
+    // With one reflectance everywhere: Σ E A = Σ (1 − ρ) B A.
+    let rho = 0.7;
+    let mtl = format!("newmtl lamp\nKd {rho} {rho} {rho}\nKe 2 1 0.5\nnewmtl a\nKd {rho} {rho} {rho}\nnewmtl b\nKd {rho} {rho} {rho}\nnewmtl c\nKd {rho} {rho} {rho}\n");
+    let s = partial_emission_box(&mtl);
+    let mut emitted = DVec3::ZERO;
+    let mut absorbed = DVec3::ZERO;
+    let lamp = s.scene().materials.iter().position(|m| m.name == "lamp").expect("lamp");
+    for (e, b) in s.mesh().elements.iter().zip(s.radiosity()) {
+        let m = s.mesh().patch(e.patch).material.0 as usize;
+        if m == lamp {
+            emitted += DVec3::new(2.0, 1.0, 0.5) * e.area;
+        }
+        absorbed += (1.0 - rho) * *b * e.area;
+    }
+    let rel = ((emitted - absorbed) / emitted).abs().max_element();
+    eprintln!("uniform rho: emitted {emitted:?} absorbed {absorbed:?} rel {rel:.2e}");
+    assert!(rel < 1e-3, "power balance off by {rel}");
+}
+
+#[test]
+fn power_balances_with_mixed_reflectances() {
+    // In general the absorbed power is Σ (1 − ρ) H A with H the incident radiance.
+    let mtl = "newmtl lamp\nKd 0.3 0.3 0.3\nKe 2 1 0.5\nnewmtl a\nKd 0.8 0.5 0.2\nnewmtl b\nKd 0.6 0.7 0.9\nnewmtl c\nKd 0.1 0.9 0.5\n";
+    let s = partial_emission_box(mtl);
+    let (emitted, absorbed) = s.power_balance();
+    let rel = ((emitted - absorbed) / emitted).abs().max_element();
+    eprintln!("mixed rho: emitted {emitted:?} absorbed {absorbed:?} rel {rel:.2e}");
+    assert!(rel < 1e-3, "power balance off by {rel}");
+}
