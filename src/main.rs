@@ -1,1 +1,9 @@
-fn main(){}
+fn main() -> std::process::ExitCode {
+    match nusselt::cli::main() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

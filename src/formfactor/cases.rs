@@ -93,7 +93,7 @@ pub fn evaluate(case: &Case, method: FormFactorMethod, params: &FormFactorParams
         if f <= 0.0 || occluders.is_empty() {
             f
         } else {
-            f * visibility_fraction(&bvh, p, n, &sampler, m, eps, rng)
+            f * visibility_fraction(&bvh, p, n, &sampler, m, eps, [u32::MAX; 2], rng)
         }
     };
     let mut rng = Rng::new(params.seed, 0);

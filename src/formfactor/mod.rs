@@ -124,6 +124,7 @@ pub fn visibility_fraction(
     target: &PolygonSampler,
     m: u32,
     epsilon: f64,
+    ignore: [u32; 2],
     rng: &mut Rng,
 ) -> f64 {
     let origin = x + nx * epsilon;
@@ -134,7 +135,7 @@ pub fn visibility_fraction(
             let u2 = (b as f64 + rng.next_f64()) / m as f64;
             let y = target.point(u1, u2) + target.normal() * epsilon;
             let ray = Ray::new(origin, y - origin);
-            if !bvh.any_hit(&ray, 1e-9, 1.0 - 1e-9) {
+            if !bvh.any_hit_except(&ray, 1e-9, 1.0 - 1e-9, ignore) {
                 visible += 1;
             }
         }
@@ -184,7 +185,10 @@ fn contour_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &Ato
                 continue;
             }
             let mut rng = Rng::new(hash_seed(&[seed, shooter.0 as u64, j as u64]), 0);
-            let v = visibility_fraction(ctx.bvh, e.centroid, e.normal, &sampler, m, ctx.epsilon, &mut rng);
+            // Patch BVH ids are front-patch indices; a back patch's front twin precedes it.
+            let own = |p: PatchId| if mesh.patch(p).back { p.0 - 1 } else { p.0 };
+            let ignore = [own(e.patch), own(shooter)];
+            let v = visibility_fraction(ctx.bvh, e.centroid, e.normal, &sampler, m, ctx.epsilon, ignore, &mut rng);
             *f = (analytic * v) as f32;
         }
     });

@@ -178,6 +178,13 @@ impl Bvh {
 
     /// True when any triangle is hit with `t` in `(t_min, t_max)` (shadow ray).
     pub fn any_hit(&self, ray: &Ray, t_min: f64, t_max: f64) -> bool {
+        self.any_hit_except(ray, t_min, t_max, [u32::MAX; 2])
+    }
+
+    /// Like [`Bvh::any_hit`], ignoring triangles whose id is in `ignore` (the two planar
+    /// patches a shadow ray joins cannot block it, and skipping them makes the test immune to
+    /// the ray's end points lying a hair behind their own surface).
+    pub fn any_hit_except(&self, ray: &Ray, t_min: f64, t_max: f64, ignore: [u32; 2]) -> bool {
         if self.nodes.is_empty() {
             return false;
         }
@@ -194,6 +201,9 @@ impl Bvh {
                 if nd.count > 0 {
                     let first = nd.first_or_right as usize;
                     for tri in &self.tris[first..first + nd.count as usize] {
+                        if tri.id == ignore[0] || tri.id == ignore[1] {
+                            continue;
+                        }
                         // Shadow rays ignore culling: a back face still blocks light.
                         let mut t = *tri;
                         t.cull_back = false;

@@ -1,0 +1,124 @@
+//! Command-line interface (clap). This is the binary's edge: errors are `anyhow`.
+//!
+//! The subcommands and flags are a contract used by tests, benchmarks and outside checks:
+//! extend them, don't rename them.
+
+mod formfactor;
+mod render;
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand};
+
+use crate::scene::{LoadOptions, Scene};
+
+#[derive(Parser, Debug)]
+#[command(name = "nusselt", version, about = "Diffuse global illumination by the radiosity method")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Solve a scene by progressive radiosity and render an image of the solution.
+    Render(render::RenderArgs),
+    /// Render an unbiased path-traced reference image of a scene.
+    Reference(render::ReferenceArgs),
+    /// Evaluate form-factor cases from a JSON file; one JSON line per case.
+    Formfactor(formfactor::FormfactorArgs),
+}
+
+/// Which scene to load: an OBJ file or a built-in.
+#[derive(Args, Debug, Clone)]
+pub struct SceneArgs {
+    /// OBJ file (with its MTL files next to it).
+    pub scene: Option<PathBuf>,
+    /// Built-in scene: cornell or furnace.
+    #[arg(long, conflicts_with = "scene")]
+    pub builtin: Option<String>,
+    /// Treat every face as two-sided (reflects and emits on both sides).
+    #[arg(long)]
+    pub two_sided: bool,
+    /// Uniform reflectance of the furnace scene.
+    #[arg(long, allow_negative_numbers = true)]
+    pub rho: Option<f64>,
+}
+
+impl SceneArgs {
+    pub fn load(&self) -> Result<Scene> {
+        let opts = LoadOptions {
+            two_sided: self.two_sided,
+            rho: self.rho,
+        };
+        let scene = match (&self.scene, &self.builtin) {
+            (Some(path), None) => Scene::load_obj(path, &opts)?,
+            (None, Some(name)) => Scene::builtin(name, &opts)?,
+            (None, None) => bail!("give a scene: an OBJ file or --builtin cornell|furnace"),
+            (Some(_), Some(_)) => bail!("give either an OBJ file or --builtin, not both"),
+        };
+        if self.rho.is_some() && scene.name != "furnace" {
+            bail!("--rho applies to the furnace scene only");
+        }
+        for w in &scene.warnings {
+            eprintln!("warning: {w}");
+        }
+        Ok(scene)
+    }
+}
+
+/// Image size and camera.
+#[derive(Args, Debug, Clone)]
+pub struct ViewArgs {
+    #[arg(long, default_value_t = 256)]
+    pub width: u32,
+    #[arg(long, default_value_t = 256)]
+    pub height: u32,
+    /// Samples per pixel (stratified, box filter).
+    #[arg(long, default_value_t = 4)]
+    pub spp: u32,
+    /// Camera as ex,ey,ez,tx,ty,tz,vfov_deg (+y up); default: the scene's own or a framing view.
+    #[arg(long, allow_hyphen_values = true)]
+    pub camera: Option<String>,
+}
+
+impl ViewArgs {
+    pub fn settings(&self, scene: &Scene, seed: u64) -> Result<crate::render::RenderSettings> {
+        if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
+            bail!("--width and --height must be in 1..=16384");
+        }
+        if self.spp == 0 {
+            bail!("--spp must be at least 1");
+        }
+        let camera = match &self.camera {
+            Some(text) => crate::scene::Camera::parse(text).context("--camera")?,
+            None => scene.default_camera(),
+        };
+        Ok(crate::render::RenderSettings {
+            width: self.width,
+            height: self.height,
+            spp: self.spp,
+            camera,
+            seed,
+        })
+    }
+}
+
+/// Runs the command line.
+pub fn main() -> Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Some(Command::Render(args)) => render::run_render(&args),
+        Some(Command::Reference(args)) => render::run_reference(&args),
+        Some(Command::Formfactor(args)) => formfactor::run(&args),
+        None => {
+            // Until the viewer lands: render the built-in Cornell box.
+            let cli = Cli::parse_from(["nusselt", "render", "--builtin", "cornell", "--out", "cornell.png"]);
+            match cli.command {
+                Some(Command::Render(args)) => render::run_render(&args),
+                _ => bail!("internal: default command did not parse"),
+            }
+        }
+    }
+}

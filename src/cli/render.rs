@@ -1,0 +1,259 @@
+//! `nusselt render` and `nusselt reference`.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use anyhow::{Context, Result, anyhow, bail};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use super::{SceneArgs, ViewArgs};
+use crate::formfactor::{FormFactorMethod, FormFactorParams};
+use crate::render::{self, Image, SolutionView};
+use crate::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    #[command(flatten)]
+    pub view: ViewArgs,
+    /// Output image: .pfm, .exr (linear) or .png (exposure + sRGB).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Element edge length in scene units (default: 1/40 of the scene's diagonal).
+    #[arg(long, allow_negative_numbers = true)]
+    pub element_size: Option<f64>,
+    /// Stop when remaining unshot power / emitted power falls to this.
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1e-4)]
+    pub unshot: f64,
+    /// Stop after this many shots.
+    #[arg(long)]
+    pub shots: Option<usize>,
+    /// Stop after this many seconds of solving.
+    #[arg(long, allow_negative_numbers = true)]
+    pub seconds: Option<f64>,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Form-factor method.
+    #[arg(long, default_value = "contour")]
+    pub formfactor: String,
+    /// Shadow rays per receiver-patch visibility estimate.
+    #[arg(long, default_value_t = 16)]
+    pub vis_rays: u32,
+    /// Leave out the ambient term (shown by default while unconverged).
+    #[arg(long)]
+    pub no_ambient: bool,
+    /// PNG exposure multiplier.
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1.0)]
+    pub exposure: f64,
+    /// Reference image (PFM) to measure the image error against.
+    #[arg(long)]
+    pub reference: Option<PathBuf>,
+    /// Convergence log: one CSV row per shot.
+    #[arg(long)]
+    pub log: Option<PathBuf>,
+    /// One CSV row per element: patch, area, centroid, radiance.
+    #[arg(long)]
+    pub elements_csv: Option<PathBuf>,
+    /// One JSON summary line on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct ReferenceArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    #[command(flatten)]
+    pub view: ViewArgs,
+    /// Output image (.pfm recommended).
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1.0)]
+    pub exposure: f64,
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+fn bar(quiet: bool, len: u64, template: &str) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(len);
+    if let Ok(style) = ProgressStyle::with_template(template) {
+        pb.set_style(style);
+    }
+    pb
+}
+
+fn create(path: &PathBuf) -> Result<std::io::BufWriter<std::fs::File>> {
+    let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    Ok(std::io::BufWriter::new(f))
+}
+
+pub fn run_render(args: &RenderArgs) -> Result<()> {
+    let process_start = Instant::now();
+    let scene = args.scene.load()?;
+    let settings = args.view.settings(&scene, args.seed)?;
+    if !(args.unshot.is_finite() && args.unshot >= 0.0) {
+        bail!("--unshot must be a number >= 0");
+    }
+    if args.seconds.is_some_and(|s| !(s.is_finite() && s >= 0.0)) {
+        bail!("--seconds must be a number >= 0");
+    }
+    if args.vis_rays == 0 {
+        bail!("--vis-rays must be at least 1");
+    }
+    if !(args.exposure.is_finite() && args.exposure > 0.0) {
+        bail!("--exposure must be a positive number");
+    }
+    let method = FormFactorMethod::parse(&args.formfactor).ok_or_else(|| {
+        let names: Vec<_> = FormFactorMethod::ALL.iter().map(|m| m.name()).collect();
+        anyhow!("unknown --formfactor '{}' (available: {})", args.formfactor, names.join(", "))
+    })?;
+    // Read the reference first so a bad path fails before the work.
+    let reference = match &args.reference {
+        Some(p) => Some(Image::load_pfm(p)?),
+        None => None,
+    };
+    let config = SolverConfig {
+        element_size: args.element_size,
+        method,
+        formfactor: FormFactorParams {
+            visibility_rays: args.vis_rays,
+            seed: args.seed,
+        },
+        ..Default::default()
+    };
+    let solve_start = Instant::now();
+    let mut solver = ProgressiveSolver::new(scene, config)?;
+    let stop = StopCriteria {
+        unshot: args.unshot,
+        max_shots: args.shots,
+        max_seconds: args.seconds,
+    };
+    let pb = bar(args.quiet, 1000, "solving {bar:40} unshot {msg} [{elapsed}]");
+    let mut log = match &args.log {
+        Some(p) => {
+            let mut w = create(p)?;
+            writeln!(w, "shot,seconds,unshot_fraction,ambient")?;
+            Some(w)
+        }
+        None => None,
+    };
+    let mut log_error: Option<std::io::Error> = None;
+    let never = AtomicBool::new(false);
+    let initial = solver.unshot_fraction().max(1e-300);
+    solver.run(&stop, &never, &mut |r| {
+        if let Some(w) = log.as_mut() {
+            if let Err(e) = writeln!(w, "{},{:.6},{:.6e},{:.6e}", r.shot, r.seconds, r.unshot_fraction, r.ambient) {
+                log_error.get_or_insert(e);
+            }
+        }
+        // Progress on a log scale from the start to the target.
+        let target = stop.unshot.max(1e-12);
+        let frac = ((initial / r.unshot_fraction.max(1e-300)).ln() / (initial / target).ln()).clamp(0.0, 1.0);
+        pb.set_position((frac * 1000.0) as u64);
+        pb.set_message(format!("{:.2e} shot {}", r.unshot_fraction, r.shot));
+    });
+    pb.finish_and_clear();
+    if let Some(e) = log_error {
+        return Err(e).context("writing the convergence log");
+    }
+    if let Some(mut w) = log {
+        w.flush()?;
+    }
+    let solve_seconds = solve_start.elapsed().as_secs_f64();
+
+    let render_start = Instant::now();
+    let vertex: Vec<_> = solver
+        .mesh()
+        .vertex_values(&solver.element_radiance(!args.no_ambient));
+    let bvh = render::display_bvh(solver.scene(), solver.mesh());
+    let view = SolutionView {
+        scene: solver.scene(),
+        mesh: solver.mesh(),
+        vertex_radiance: &vertex,
+        bvh: &bvh,
+    };
+    let image = render::render_solution(&view, &settings);
+    let render_seconds = render_start.elapsed().as_secs_f64();
+    image.save(&args.out, args.exposure)?;
+
+    let error = match &reference {
+        Some(r) => {
+            let mask = render::error_mask(&view, &settings.camera, settings.width, settings.height);
+            Some(render::relative_rms(&image, r, &mask)?)
+        }
+        None => None,
+    };
+    if let Some(p) = &args.elements_csv {
+        let mut w = create(p)?;
+        writeln!(w, "patch,area,cx,cy,cz,r,g,b")?;
+        let radiance = solver.element_radiance(!args.no_ambient);
+        for (e, b) in solver.mesh().elements.iter().zip(&radiance) {
+            let patch = solver.mesh().patch(e.patch);
+            let c = e.centroid;
+            writeln!(
+                w,
+                "{},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e}",
+                patch.source_face, e.area, c.x, c.y, c.z, b.x, b.y, b.z
+            )?;
+        }
+        w.flush()?;
+    }
+    let summary = serde_json::json!({
+        "elements": solver.mesh().elements.len(),
+        "vertices": solver.mesh().vertices.len(),
+        "shots": solver.shots(),
+        "solve_seconds": solve_seconds,
+        "render_seconds": render_seconds,
+        "total_seconds": process_start.elapsed().as_secs_f64(),
+        "unshot_fraction": solver.unshot_fraction(),
+        "error": error,
+    });
+    if args.json {
+        println!("{summary}");
+    } else if !args.quiet {
+        eprintln!(
+            "{} elements, {} shots, unshot {:.2e}, solve {:.3} s, render {:.3} s{}; wrote {}",
+            solver.mesh().elements.len(),
+            solver.shots(),
+            solver.unshot_fraction(),
+            solve_seconds,
+            render_seconds,
+            error.map(|e| format!(", image error {:.2} %", e * 100.0)).unwrap_or_default(),
+            args.out.display()
+        );
+    }
+    Ok(())
+}
+
+pub fn run_reference(args: &ReferenceArgs) -> Result<()> {
+    let scene = args.scene.load()?;
+    let settings = args.view.settings(&scene, args.seed)?;
+    let start = Instant::now();
+    let pb = bar(args.quiet, settings.height as u64, "path tracing {bar:40} {pos}/{len} rows [{elapsed} / ~{duration}]");
+    let image = render::pathtrace::reference(&scene, &settings, &|rows| pb.set_position(rows as u64));
+    pb.finish_and_clear();
+    image.save(&args.out, args.exposure)?;
+    if !args.quiet {
+        eprintln!(
+            "{} spp at {}×{} in {:.1} s; wrote {}",
+            settings.spp,
+            settings.width,
+            settings.height,
+            start.elapsed().as_secs_f64(),
+            args.out.display()
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,117 @@
+//! Images of a solution from a camera, and an independent reference.
+//!
+//! [`render_solution`] casts `spp` stratified rays per pixel (box filter over the pixel) and
+//! shades the first hit with the radiance interpolated from the mesh's display vertices;
+//! emitters show their `Ke`. [`pathtrace::reference`] is an unbiased diffuse path tracer on
+//! the same scene for measuring the image error (pbrt-v4's `--mse-reference-image` idea).
+
+pub mod image;
+pub mod pathtrace;
+
+pub use self::image::{Image, relative_rms};
+pub use crate::scene::Camera;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::geometry::{Bvh, Ray, Rng};
+use crate::geometry::sampling::hash_seed;
+use crate::mesh::Mesh;
+use crate::scene::{Rgb, Scene};
+
+#[derive(Clone, Copy, Debug)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub camera: Camera,
+    pub seed: u64,
+}
+
+/// Shading data for a solution: the mesh, per-vertex radiance and the BVH to find hits.
+pub struct SolutionView<'a> {
+    pub scene: &'a Scene,
+    pub mesh: &'a Mesh,
+    pub vertex_radiance: &'a [Rgb],
+    pub bvh: &'a Bvh,
+}
+
+/// BVH over the mesh's display triangles (ids = display triangle index).
+pub fn display_bvh(scene: &Scene, mesh: &Mesh) -> Bvh {
+    Bvh::build(&mesh.display_triangles(scene.two_sided))
+}
+
+/// What a camera ray sees first.
+enum FirstHit {
+    Background,
+    Emitter(Rgb),
+    Surface(Rgb),
+}
+
+fn shade(view: &SolutionView, ray: &Ray) -> FirstHit {
+    let Some(hit) = view.bvh.closest_hit(ray, 0.0, f64::INFINITY) else {
+        return FirstHit::Background;
+    };
+    let tri = view.mesh.triangles[hit.id as usize];
+    let element = view.mesh.triangle_element[hit.id as usize];
+    let patch = view.mesh.patch(view.mesh.elements[element.0 as usize].patch);
+    let material = &view.scene.materials[patch.material.0 as usize];
+    if !hit.front && !view.scene.two_sided {
+        return FirstHit::Surface(Rgb::ZERO); // the unlit back of a one-sided face
+    }
+    if material.is_emitter() {
+        return FirstHit::Emitter(material.emission);
+    }
+    let [a, b, c] = tri.map(|v| view.vertex_radiance[v as usize]);
+    FirstHit::Surface(a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v)
+}
+
+/// Pixel samples: an `m × m` jittered grid over the pixel (m² ≥ spp, m = ⌈√spp⌉).
+fn pixel_samples(x: u32, y: u32, spp: u32, seed: u64, mut f: impl FnMut(f64, f64)) {
+    let m = ((spp.max(1) as f64).sqrt().ceil() as u32).max(1);
+    let mut rng = Rng::new(hash_seed(&[seed, x as u64, y as u64]), 7);
+    for k in 0..spp.max(1) {
+        let (a, b) = (k % m, (k / m) % m);
+        let jx = (a as f64 + rng.next_f64()) / m as f64;
+        let jy = (b as f64 + rng.next_f64()) / m as f64;
+        f(x as f64 + jx, y as f64 + jy);
+    }
+}
+
+/// Renders a solution (see module docs).
+pub fn render_solution(view: &SolutionView, settings: &RenderSettings) -> Image {
+    let (w, h) = (settings.width, settings.height);
+    let cam = settings.camera;
+    let mut img = Image::new(w, h);
+    img.pixels.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
+        for (x, px) in row.iter_mut().enumerate() {
+            let mut sum = DVec3::ZERO;
+            pixel_samples(x as u32, y as u32, settings.spp, settings.seed, |sx, sy| {
+                let ray = Ray::new(cam.eye, cam.ray_dir(sx, sy, w, h));
+                sum += match shade(view, &ray) {
+                    FirstHit::Background => Rgb::ZERO,
+                    FirstHit::Emitter(e) | FirstHit::Surface(e) => e,
+                };
+            });
+            *px = sum / settings.spp.max(1) as f64;
+        }
+    });
+    img
+}
+
+/// Pixels that count for the image error: every ray of a fixed 4×4 grid over the pixel
+/// hits a non-emitting surface (no background, no light source).
+pub fn error_mask(view: &SolutionView, camera: &Camera, width: u32, height: u32) -> Vec<bool> {
+    let mut mask = vec![false; width as usize * height as usize];
+    mask.par_chunks_mut(width as usize).enumerate().for_each(|(y, row)| {
+        for (x, m) in row.iter_mut().enumerate() {
+            *m = (0..16).all(|k| {
+                let sx = x as f64 + ((k % 4) as f64 + 0.5) / 4.0;
+                let sy = y as f64 + ((k / 4) as f64 + 0.5) / 4.0;
+                let ray = Ray::new(camera.eye, camera.ray_dir(sx, sy, width, height));
+                matches!(shade(view, &ray), FirstHit::Surface(_))
+            });
+        }
+    });
+    mask
+}
