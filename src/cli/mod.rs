@@ -76,7 +76,7 @@ pub struct ViewArgs {
     #[arg(long, default_value_t = 256)]
     pub height: u32,
     /// Samples per pixel (stratified, box filter).
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 16)]
     pub spp: u32,
     /// Camera as ex,ey,ez,tx,ty,tz,vfov_deg (+y up); default: the scene's own or a framing view.
     #[arg(long, allow_hyphen_values = true)]

@@ -8,7 +8,7 @@ use glam::DVec3;
 use serde::Deserialize;
 
 use super::contour;
-use super::{FormFactorMethod, FormFactorParams, PolygonSampler, visibility_fraction};
+use super::{FormFactorMethod, FormFactorParams, PolygonSampler, occluded_point_to_polygon};
 use crate::geometry::bvh::TriangleInput;
 use crate::geometry::{Bvh, Rng, polygon};
 
@@ -89,11 +89,10 @@ pub fn evaluate(case: &Case, method: FormFactorMethod, params: &FormFactorParams
     let eps = 1e-9 * scale.max(1e-12);
     let sampler = PolygonSampler::new(&a2);
     let point_value = |p: DVec3, n: DVec3, rng: &mut Rng| {
-        let f = contour::point_to_polygon(p, n, &a2);
-        if f <= 0.0 || occluders.is_empty() {
-            f
+        if occluders.is_empty() {
+            contour::point_to_polygon(p, n, &a2)
         } else {
-            f * visibility_fraction(&bvh, p, n, &sampler, m, eps, [u32::MAX; 2], rng)
+            occluded_point_to_polygon(&bvh, p, n, &a2, &sampler, m, eps, [u32::MAX; 2], rng)
         }
     };
     let mut rng = Rng::new(params.seed, 0);

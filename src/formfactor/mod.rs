@@ -63,7 +63,7 @@ impl Default for FormFactorParams {
 /// What a row computation may look at.
 pub struct RowContext<'a> {
     pub mesh: &'a Mesh,
-    /// BVH over the patch triangles (ids = patch index).
+    /// BVH over the patch triangles (ids = input face index).
     pub bvh: &'a Bvh,
     pub params: &'a FormFactorParams,
     /// Offset of shadow-ray end points from their surfaces (scene units).
@@ -147,6 +147,36 @@ fn side(rays: u32) -> u32 {
     ((rays.max(1) as f64).sqrt().round() as u32).max(1)
 }
 
+/// Lambert's point-to-polygon form factor times the visible fraction of stratified shadow
+/// rays to the part of the polygon above the receiver's tangent plane (`full` samples the
+/// whole polygon and is used when no clipping is needed).
+#[allow(clippy::too_many_arguments)]
+pub fn occluded_point_to_polygon(
+    bvh: &Bvh,
+    x: DVec3,
+    nx: DVec3,
+    poly: &[DVec3],
+    full: &PolygonSampler,
+    m: u32,
+    epsilon: f64,
+    ignore: [u32; 2],
+    rng: &mut Rng,
+) -> f64 {
+    let analytic = contour::point_to_polygon(x, nx, poly);
+    if analytic <= 0.0 {
+        return 0.0;
+    }
+    let above = poly.iter().all(|v| (*v - x).dot(nx) >= 0.0);
+    let v = if above {
+        visibility_fraction(bvh, x, nx, full, m, epsilon, ignore, rng)
+    } else {
+        let clipped = polygon::clip_to_halfspace(poly, x, nx);
+        let part = PolygonSampler::new(&clipped);
+        visibility_fraction(bvh, x, nx, &part, m, epsilon, ignore, rng)
+    };
+    analytic * v
+}
+
 /// Computes `out[j] = F_ji`, from element `j` to the shooting patch `i`.
 /// Returns `false` (leaving `out` partly written) when `cancel` was set during the work.
 pub fn compute_row(
@@ -179,17 +209,21 @@ fn contour_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &Ato
                 *f = 0.0;
                 continue;
             }
-            let analytic = contour::point_to_polygon(e.centroid, e.normal, &patch.polygon);
-            if analytic <= 0.0 {
-                *f = 0.0;
-                continue;
-            }
             let mut rng = Rng::new(hash_seed(&[seed, shooter.0 as u64, j as u64]), 0);
-            // Patch BVH ids are front-patch indices; a back patch's front twin precedes it.
-            let own = |p: PatchId| if mesh.patch(p).back { p.0 - 1 } else { p.0 };
-            let ignore = [own(e.patch), own(shooter)];
-            let v = visibility_fraction(ctx.bvh, e.centroid, e.normal, &sampler, m, ctx.epsilon, ignore, &mut rng);
-            *f = (analytic * v) as f32;
+            // BVH ids are input faces; a planar face cannot block rays between its points.
+            let ignore = [mesh.patch(e.patch).face as u32, patch.face as u32];
+            let v = occluded_point_to_polygon(
+                ctx.bvh,
+                e.centroid,
+                e.normal,
+                &patch.polygon,
+                &sampler,
+                m,
+                ctx.epsilon,
+                ignore,
+                &mut rng,
+            );
+            *f = v as f32;
         }
     });
     !cancel.load(Ordering::Relaxed)

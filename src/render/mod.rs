@@ -99,19 +99,29 @@ pub fn render_solution(view: &SolutionView, settings: &RenderSettings) -> Image 
     img
 }
 
-/// Pixels that count for the image error: every ray of a fixed 4×4 grid over the pixel
-/// hits a non-emitting surface (no background, no light source).
+/// Pixels that count for the image error: no ray of an 8×8 grid over the pixel or over its
+/// eight neighbours hits the background or a light source. The one-pixel margin keeps out
+/// pixels that a light covers by a sliver too thin for the grid, whose value would be
+/// dominated by the light's radiance.
 pub fn error_mask(view: &SolutionView, camera: &Camera, width: u32, height: u32) -> Vec<bool> {
-    let mut mask = vec![false; width as usize * height as usize];
-    mask.par_chunks_mut(width as usize).enumerate().for_each(|(y, row)| {
+    let (w, h) = (width as usize, height as usize);
+    let mut surface_only = vec![false; w * h];
+    surface_only.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         for (x, m) in row.iter_mut().enumerate() {
-            *m = (0..16).all(|k| {
-                let sx = x as f64 + ((k % 4) as f64 + 0.5) / 4.0;
-                let sy = y as f64 + ((k / 4) as f64 + 0.5) / 4.0;
+            *m = (0..64).all(|k| {
+                let sx = x as f64 + ((k % 8) as f64 + 0.5) / 8.0;
+                let sy = y as f64 + ((k / 8) as f64 + 0.5) / 8.0;
                 let ray = Ray::new(camera.eye, camera.ray_dir(sx, sy, width, height));
                 matches!(shade(view, &ray), FirstHit::Surface(_))
             });
         }
     });
+    let mut mask = vec![false; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            mask[y * w + x] = (y.saturating_sub(1)..(y + 2).min(h))
+                .all(|yy| (x.saturating_sub(1)..(x + 2).min(w)).all(|xx| surface_only[yy * w + xx]));
+        }
+    }
     mask
 }

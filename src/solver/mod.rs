@@ -419,16 +419,28 @@ impl ProgressiveSolver {
         Ok(())
     }
 
-    /// The front-facing patch hit by a ray, if any (for picking in a viewer).
+    /// The patch hit by a ray, on the side the ray sees (for picking in a viewer).
     pub fn pick(&self, origin: DVec3, dir: DVec3) -> Option<PatchId> {
-        let hit = self.bvh.closest_hit(&Ray::new(origin, dir), 0.0, f64::INFINITY)?;
-        let id = PatchId(hit.id);
-        if hit.front || !self.scene.two_sided {
-            return Some(id);
-        }
-        // Back of a two-sided face: its back patch follows the front patch.
-        let next = PatchId(hit.id + 1);
-        (next.0 < self.mesh.patches.len() as u32 && self.mesh.patch(next).back).then_some(next).or(Some(id))
+        let ray = Ray::new(origin, dir);
+        let hit = self.bvh.closest_hit(&ray, 0.0, f64::INFINITY)?;
+        let face = hit.id as usize;
+        let back = !hit.front && self.scene.two_sided;
+        let x = ray.at(hit.t);
+        let candidates = || {
+            self.mesh
+                .patches
+                .iter()
+                .enumerate()
+                .filter(move |(_, p)| p.face == face && p.back == back)
+        };
+        // The patch whose centroid is nearest the hit point.
+        candidates()
+            .min_by(|a, b| {
+                let da = (a.1.centroid - x).length_squared();
+                let db = (b.1.centroid - x).length_squared();
+                da.total_cmp(&db)
+            })
+            .map(|(i, _)| PatchId(i as u32))
     }
 
     /// Incident radiance per element, `H_j = Σ ΔB_i F_ji` over all shots.
