@@ -1,1 +1,107 @@
-fn main(){}
+//! Criterion benchmarks of the core: shadow rays through the BVH (one thread), one form-factor
+//! row, and a whole Cornell solve. Speed targets live here, never in unit tests.
+//!
+//! `cargo bench --bench core`
+
+use std::hint::black_box;
+use std::sync::atomic::AtomicBool;
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use glam::DVec3;
+use nusselt::geometry::{Bvh, Ray, Rng};
+use nusselt::mesh::Mesh;
+use nusselt::scene::{LoadOptions, Scene};
+use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+
+fn cornell() -> Scene {
+    Scene::builtin("cornell", &LoadOptions::default()).expect("cornell")
+}
+
+/// Random segments between points on the Cornell box's surfaces (shadow-ray workload).
+fn segments(mesh: &Mesh, n: usize) -> Vec<(DVec3, DVec3)> {
+    let mut rng = Rng::new(5, 0);
+    let pick = |rng: &mut Rng| {
+        let e = &mesh.elements[(rng.next_f64() * mesh.elements.len() as f64) as usize];
+        e.centroid + e.normal * 1e-3
+    };
+    (0..n).map(|_| (pick(&mut rng), pick(&mut rng))).collect()
+}
+
+fn bvh_rays(c: &mut Criterion) {
+    let scene = cornell();
+    let mesh = Mesh::build(&scene, 20.0).expect("mesh");
+    let bvh = Bvh::build(&mesh.patch_triangles());
+    let segs = segments(&mesh, 100_000);
+    let mut g = c.benchmark_group("bvh");
+    g.throughput(Throughput::Elements(segs.len() as u64));
+    g.bench_function("cornell_shadow_rays_one_thread", |b| {
+        b.iter(|| {
+            let mut blocked = 0usize;
+            for (a, p) in &segs {
+                blocked += bvh.any_hit(&Ray::new(*a, *p - *a), 1e-6, 1.0 - 1e-6) as usize;
+            }
+            black_box(blocked)
+        })
+    });
+    g.bench_function("cornell_closest_hit_one_thread", |b| {
+        b.iter(|| {
+            let mut t = 0.0;
+            for (a, p) in &segs {
+                if let Some(h) = bvh.closest_hit(&Ray::new(*a, *p - *a), 1e-6, f64::INFINITY) {
+                    t += h.t;
+                }
+            }
+            black_box(t)
+        })
+    });
+    g.finish();
+}
+
+fn solve(c: &mut Criterion) {
+    let mut g = c.benchmark_group("solver");
+    g.sample_size(10);
+    g.bench_function("cornell_row_light_default_mesh", |b| {
+        let solver = ProgressiveSolver::new(cornell(), SolverConfig::default()).expect("solver");
+        let light = solver.next_shooter().expect("a light");
+        b.iter(|| {
+            // A fresh solver per row would measure meshing; compute the row directly.
+            let mut out = vec![0f32; solver.mesh().elements.len()];
+            let params = solver.config().formfactor.clone();
+            let ctx = nusselt::formfactor::RowContext {
+                scene: solver.scene(),
+                mesh: solver.mesh(),
+                bvh: solver.bvh(),
+                params: &params,
+                epsilon: 1e-3,
+            };
+            nusselt::formfactor::compute_row(
+                solver.config().method,
+                &ctx,
+                light,
+                &mut out,
+                &AtomicBool::new(false),
+            );
+            black_box(out)
+        })
+    });
+    g.bench_function("cornell_solve_to_1e-3_element_24mm", |b| {
+        b.iter(|| {
+            let config = SolverConfig {
+                element_size: Some(24.0),
+                patch_size: Some(48.0),
+                ..Default::default()
+            };
+            let mut s = ProgressiveSolver::new(cornell(), config).expect("solver");
+            let stop = StopCriteria {
+                unshot: 1e-3,
+                ..Default::default()
+            };
+            s.run(&stop, &AtomicBool::new(false), &mut |_| {});
+            black_box(s.shots())
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bvh_rays, solve);
+criterion_main!(benches);

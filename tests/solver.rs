@@ -7,10 +7,23 @@ use nusselt::scene::{LoadOptions, Scene};
 use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 
 fn furnace(rho: f64, size: f64) -> ProgressiveSolver {
-    let scene = Scene::builtin("furnace", &LoadOptions { rho: Some(rho), ..Default::default() })
-        .expect("furnace scene");
-    ProgressiveSolver::new(scene, SolverConfig { element_size: Some(size), ..Default::default() })
-        .expect("solver")
+    let scene = Scene::builtin(
+        "furnace",
+        &LoadOptions {
+            rho: Some(rho),
+            ..Default::default()
+        },
+    )
+    .expect("furnace scene");
+    ProgressiveSolver::new(
+        scene,
+        SolverConfig {
+            element_size: Some(size),
+            patch_size: Some(0.5),
+            ..Default::default()
+        },
+    )
+    .expect("solver")
 }
 
 fn max_rel_error(values: &[DVec3], exact: f64) -> f64 {
@@ -27,16 +40,43 @@ fn furnace_converges_to_e_over_one_minus_rho() {
         let mut s = furnace(rho, 0.25);
         let exact = 1.0 / (1.0 - rho);
         // Before any shot the ambient term alone gives the exact answer in a furnace.
-        assert!(max_rel_error(&s.element_radiance(true), exact) < 1e-3, "rho {rho} at start");
+        assert!(
+            max_rel_error(&s.element_radiance(true), exact) < 1e-3,
+            "rho {rho} at start"
+        );
         let raw0 = max_rel_error(&s.element_radiance(false), exact);
-        s.run(&StopCriteria { max_shots: Some(6), ..Default::default() }, &never, &mut |_| {});
+        // About one shot per patch.
+        let sweep = s.mesh().patches.len();
+        s.run(
+            &StopCriteria {
+                max_shots: Some(sweep),
+                ..Default::default()
+            },
+            &never,
+            &mut |_| {},
+        );
         let early = max_rel_error(&s.element_radiance(true), exact);
         let raw = max_rel_error(&s.element_radiance(false), exact);
-        eprintln!("rho {rho}: after 6 shots ambient-corrected error {early:.2e}, raw {raw:.2e} (start raw {raw0:.2e})");
-        assert!(early < 0.2 * raw, "ambient must correct most of the early error");
-        s.run(&StopCriteria { unshot: 1e-4 * (1.0 - rho), ..Default::default() }, &never, &mut |_| {});
+        eprintln!(
+            "rho {rho}: after {sweep} shots ambient-corrected error {early:.2e}, raw {raw:.2e} (start raw {raw0:.2e})"
+        );
+        assert!(
+            early < 0.2 * raw,
+            "ambient must correct most of the early error"
+        );
+        s.run(
+            &StopCriteria {
+                unshot: 1e-4 * (1.0 - rho),
+                ..Default::default()
+            },
+            &never,
+            &mut |_| {},
+        );
         let err = max_rel_error(s.radiosity(), exact);
-        eprintln!("rho {rho}: {} shots, max element error {err:.2e}", s.shots());
+        eprintln!(
+            "rho {rho}: {} shots, max element error {err:.2e}",
+            s.shots()
+        );
         assert!(err < 1e-3, "rho {rho}: error {err}");
     }
 }
@@ -46,11 +86,29 @@ usemtl lamp\nf 1 5 6 2\nusemtl a\nf 4 3 7 8\nf 1 2 3 4\nusemtl b\nf 5 8 7 6\nf 1
 
 /// A closed cube where only the floor emits.
 fn partial_emission_box(mtl: &str) -> ProgressiveSolver {
-    let scene = Scene::from_obj_str("box.obj", BOX_OBJ, &[("m.mtl", mtl)], &LoadOptions::default())
-        .expect("scene");
-    let mut s = ProgressiveSolver::new(scene, SolverConfig { element_size: Some(0.1), ..Default::default() })
-        .expect("solver");
-    s.run(&StopCriteria { unshot: 1e-7, ..Default::default() }, &AtomicBool::new(false), &mut |_| {});
+    let scene = Scene::from_obj_str(
+        "box.obj",
+        BOX_OBJ,
+        &[("m.mtl", mtl)],
+        &LoadOptions::default(),
+    )
+    .expect("scene");
+    let mut s = ProgressiveSolver::new(
+        scene,
+        SolverConfig {
+            element_size: Some(0.1),
+            ..Default::default()
+        },
+    )
+    .expect("solver");
+    s.run(
+        &StopCriteria {
+            unshot: 1e-7,
+            ..Default::default()
+        },
+        &AtomicBool::new(false),
+        &mut |_| {},
+    );
     s
 }
 
@@ -58,11 +116,18 @@ fn partial_emission_box(mtl: &str) -> ProgressiveSolver {
 fn power_balances_with_partial_emission_and_uniform_rho() {
     // With one reflectance everywhere: Σ E A = Σ (1 − ρ) B A.
     let rho = 0.7;
-    let mtl = format!("newmtl lamp\nKd {rho} {rho} {rho}\nKe 2 1 0.5\nnewmtl a\nKd {rho} {rho} {rho}\nnewmtl b\nKd {rho} {rho} {rho}\nnewmtl c\nKd {rho} {rho} {rho}\n");
+    let mtl = format!(
+        "newmtl lamp\nKd {rho} {rho} {rho}\nKe 2 1 0.5\nnewmtl a\nKd {rho} {rho} {rho}\nnewmtl b\nKd {rho} {rho} {rho}\nnewmtl c\nKd {rho} {rho} {rho}\n"
+    );
     let s = partial_emission_box(&mtl);
     let mut emitted = DVec3::ZERO;
     let mut absorbed = DVec3::ZERO;
-    let lamp = s.scene().materials.iter().position(|m| m.name == "lamp").expect("lamp");
+    let lamp = s
+        .scene()
+        .materials
+        .iter()
+        .position(|m| m.name == "lamp")
+        .expect("lamp");
     for (e, b) in s.mesh().elements.iter().zip(s.radiosity()) {
         let m = s.mesh().patch(e.patch).material.0 as usize;
         if m == lamp {

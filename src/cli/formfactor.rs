@@ -25,11 +25,16 @@ pub struct FormfactorArgs {
 pub fn run(args: &FormfactorArgs) -> Result<()> {
     let method = FormFactorMethod::parse(&args.method).ok_or_else(|| {
         let names: Vec<_> = FormFactorMethod::ALL.iter().map(|m| m.name()).collect();
-        anyhow!("unknown --method '{}' (available: {})", args.method, names.join(", "))
+        anyhow!(
+            "unknown --method '{}' (available: {})",
+            args.method,
+            names.join(", ")
+        )
     })?;
     let list = cases::load(&args.cases)?;
     let params = FormFactorParams {
         visibility_rays: args.vis_rays,
+        probe_visibility: false,
         seed: args.seed,
     };
     for case in &list {

@@ -14,7 +14,11 @@ use clap::{Args, Parser, Subcommand};
 use crate::scene::{LoadOptions, Scene};
 
 #[derive(Parser, Debug)]
-#[command(name = "nusselt", version, about = "Diffuse global illumination by the radiosity method")]
+#[command(
+    name = "nusselt",
+    version,
+    about = "Diffuse global illumination by the radiosity method"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Option<Command>,
@@ -114,7 +118,14 @@ pub fn main() -> Result<()> {
         Some(Command::Formfactor(args)) => formfactor::run(&args),
         None => {
             // Until the viewer lands: render the built-in Cornell box.
-            let cli = Cli::parse_from(["nusselt", "render", "--builtin", "cornell", "--out", "cornell.png"]);
+            let cli = Cli::parse_from([
+                "nusselt",
+                "render",
+                "--builtin",
+                "cornell",
+                "--out",
+                "cornell.png",
+            ]);
             match cli.command {
                 Some(Command::Render(args)) => render::run_render(&args),
                 _ => bail!("internal: default command did not parse"),

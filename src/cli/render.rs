@@ -23,9 +23,15 @@ pub struct RenderArgs {
     /// Output image: .pfm, .exr (linear) or .png (exposure + sRGB).
     #[arg(long)]
     pub out: PathBuf,
-    /// Element edge length in scene units (default: 1/40 of the scene's diagonal).
+    /// Element edge length in scene units (default: 1/80 of the scene's diagonal).
     #[arg(long, allow_negative_numbers = true)]
     pub element_size: Option<f64>,
+    /// Patch (shooter) edge length in scene units (default: 1/24 of the scene's diagonal).
+    #[arg(long, allow_negative_numbers = true)]
+    pub patch_size: Option<f64>,
+    /// Cast every shadow ray for every shooter (no 4-ray probe for non-emitters).
+    #[arg(long)]
+    pub full_visibility: bool,
     /// Stop when remaining unshot power / emitted power falls to this.
     #[arg(long, allow_negative_numbers = true, default_value_t = 1e-4)]
     pub unshot: f64,
@@ -95,7 +101,8 @@ fn bar(quiet: bool, len: u64, template: &str) -> ProgressBar {
 }
 
 fn create(path: &PathBuf) -> Result<std::io::BufWriter<std::fs::File>> {
-    let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let f =
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
     Ok(std::io::BufWriter::new(f))
 }
 
@@ -117,7 +124,11 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
     }
     let method = FormFactorMethod::parse(&args.formfactor).ok_or_else(|| {
         let names: Vec<_> = FormFactorMethod::ALL.iter().map(|m| m.name()).collect();
-        anyhow!("unknown --formfactor '{}' (available: {})", args.formfactor, names.join(", "))
+        anyhow!(
+            "unknown --formfactor '{}' (available: {})",
+            args.formfactor,
+            names.join(", ")
+        )
     })?;
     // Read the reference first so a bad path fails before the work.
     let reference = match &args.reference {
@@ -129,8 +140,10 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
         method,
         formfactor: FormFactorParams {
             visibility_rays: args.vis_rays,
+            probe_visibility: !args.full_visibility,
             seed: args.seed,
         },
+        patch_size: args.patch_size,
         ..Default::default()
     };
     let solve_start = Instant::now();
@@ -140,7 +153,11 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
         max_shots: args.shots,
         max_seconds: args.seconds,
     };
-    let pb = bar(args.quiet, 1000, "solving {bar:40} unshot {msg} [{elapsed}]");
+    let pb = bar(
+        args.quiet,
+        1000,
+        "solving {bar:40} unshot {msg} [{elapsed}]",
+    );
     let mut log = match &args.log {
         Some(p) => {
             let mut w = create(p)?;
@@ -153,14 +170,19 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
     let never = AtomicBool::new(false);
     let initial = solver.unshot_fraction().max(1e-300);
     solver.run(&stop, &never, &mut |r| {
-        if let Some(w) = log.as_mut() {
-            if let Err(e) = writeln!(w, "{},{:.6},{:.6e},{:.6e}", r.shot, r.seconds, r.unshot_fraction, r.ambient) {
-                log_error.get_or_insert(e);
-            }
+        if let Some(w) = log.as_mut()
+            && let Err(e) = writeln!(
+                w,
+                "{},{:.6},{:.6e},{:.6e}",
+                r.shot, r.seconds, r.unshot_fraction, r.ambient
+            )
+        {
+            log_error.get_or_insert(e);
         }
         // Progress on a log scale from the start to the target.
         let target = stop.unshot.max(1e-12);
-        let frac = ((initial / r.unshot_fraction.max(1e-300)).ln() / (initial / target).ln()).clamp(0.0, 1.0);
+        let frac = ((initial / r.unshot_fraction.max(1e-300)).ln() / (initial / target).ln())
+            .clamp(0.0, 1.0);
         pb.set_position((frac * 1000.0) as u64);
         pb.set_message(format!("{:.2e} shot {}", r.unshot_fraction, r.shot));
     });
@@ -230,7 +252,9 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
             solver.unshot_fraction(),
             solve_seconds,
             render_seconds,
-            error.map(|e| format!(", image error {:.2} %", e * 100.0)).unwrap_or_default(),
+            error
+                .map(|e| format!(", image error {:.2} %", e * 100.0))
+                .unwrap_or_default(),
             args.out.display()
         );
     }
@@ -241,8 +265,13 @@ pub fn run_reference(args: &ReferenceArgs) -> Result<()> {
     let scene = args.scene.load()?;
     let settings = args.view.settings(&scene, args.seed)?;
     let start = Instant::now();
-    let pb = bar(args.quiet, settings.height as u64, "path tracing {bar:40} {pos}/{len} rows [{elapsed} / ~{duration}]");
-    let image = render::pathtrace::reference(&scene, &settings, &|rows| pb.set_position(rows as u64));
+    let pb = bar(
+        args.quiet,
+        settings.height as u64,
+        "path tracing {bar:40} {pos}/{len} rows [{elapsed} / ~{duration}]",
+    );
+    let image =
+        render::pathtrace::reference(&scene, &settings, &|rows| pb.set_position(rows as u64));
     pb.finish_and_clear();
     image.save(&args.out, args.exposure)?;
     if !args.quiet {

@@ -64,16 +64,26 @@ pub fn load(path: &Path) -> Result<Vec<Case>, CaseError> {
         };
         let finite = |poly: &[[f64; 3]]| poly.iter().flatten().all(|x| x.is_finite());
         if c.a2.len() < 3 || polygon::normal(&to_vecs(&c.a2)).is_none() || !finite(&c.a2) {
-            return Err(bad("A2 must be a polygon of at least 3 finite, non-collinear vertices"));
+            return Err(bad(
+                "A2 must be a polygon of at least 3 finite, non-collinear vertices",
+            ));
         }
-        if c.point.is_none() && (c.a1.len() < 3 || polygon::normal(&to_vecs(&c.a1)).is_none() || !finite(&c.a1)) {
+        if c.point.is_none()
+            && (c.a1.len() < 3 || polygon::normal(&to_vecs(&c.a1)).is_none() || !finite(&c.a1))
+        {
             return Err(bad("A1 must be a polygon (or give point and point_normal)"));
         }
-        if c.point.is_some() && c.point_normal.and_then(|n| DVec3::from_array(n).try_normalize()).is_none() {
+        if c.point.is_some()
+            && c.point_normal
+                .and_then(|n| DVec3::from_array(n).try_normalize())
+                .is_none()
+        {
             return Err(bad("point_normal must be a non-zero vector"));
         }
         if c.occluders.iter().any(|o| o.len() < 3 || !finite(o)) {
-            return Err(bad("each occluder must be a polygon of at least 3 finite vertices"));
+            return Err(bad(
+                "each occluder must be a polygon of at least 3 finite vertices",
+            ));
         }
     }
     Ok(cases)
@@ -92,7 +102,7 @@ pub fn evaluate(case: &Case, method: FormFactorMethod, params: &FormFactorParams
         if occluders.is_empty() {
             contour::point_to_polygon(p, n, &a2)
         } else {
-            occluded_point_to_polygon(&bvh, p, n, &a2, &sampler, m, eps, [u32::MAX; 2], rng)
+            occluded_point_to_polygon(&bvh, p, n, &a2, &sampler, m, false, eps, [u32::MAX; 2], rng)
         }
     };
     let mut rng = Rng::new(params.seed, 0);
@@ -158,7 +168,14 @@ fn cell(g: &mut dyn FnMut(f64, f64) -> f64, u0: f64, v0: f64, h: f64) -> f64 {
     s * h * h
 }
 
-fn adapt(g: &mut dyn FnMut(f64, f64) -> f64, u0: f64, v0: f64, h: f64, whole: Option<f64>, depth: u32) -> f64 {
+fn adapt(
+    g: &mut dyn FnMut(f64, f64) -> f64,
+    u0: f64,
+    v0: f64,
+    h: f64,
+    whole: Option<f64>,
+    depth: u32,
+) -> f64 {
     let whole = whole.unwrap_or_else(|| cell(g, u0, v0, h));
     let hh = h * 0.5;
     let parts = [

@@ -29,7 +29,11 @@ pub fn point_to_polygon(p: DVec3, n: DVec3, poly: &[DVec3]) -> f64 {
         lambert(p, n, poly)
     } else {
         let clipped = polygon::clip_to_halfspace(poly, p, n);
-        if clipped.len() < 3 { 0.0 } else { lambert(p, n, &clipped) }
+        if clipped.len() < 3 {
+            0.0
+        } else {
+            lambert(p, n, &clipped)
+        }
     }
 }
 
@@ -38,8 +42,10 @@ pub fn lambert(p: DVec3, n: DVec3, poly: &[DVec3]) -> f64 {
     let k = poly.len();
     let mut sum = 0.0;
     for i in 0..k {
-        let (Some(a), Some(b)) = ((poly[i] - p).try_normalize(), (poly[(i + 1) % k] - p).try_normalize())
-        else {
+        let (Some(a), Some(b)) = (
+            (poly[i] - p).try_normalize(),
+            (poly[(i + 1) % k] - p).try_normalize(),
+        ) else {
             continue;
         };
         let c = a.cross(b);
@@ -72,7 +78,9 @@ pub fn point_to_point(p: DVec3, n: DVec3, q: DVec3, nq: DVec3, area: f64) -> f64
 /// Form factor from polygon `a1` to `a2` by integrating the contour formula over `a1`
 /// with an `n × n` midpoint rule per triangle of `a1`'s subdivision.
 pub fn polygon_to_polygon(a1: &[DVec3], a2: &[DVec3], n: usize) -> f64 {
-    let Some(n1) = polygon::normal(a1) else { return 0.0 };
+    let Some(n1) = polygon::normal(a1) else {
+        return 0.0;
+    };
     let area = polygon::area(a1);
     let mut sum = 0.0;
     for t in polygon::triangulate(a1) {
@@ -118,8 +126,14 @@ mod tests {
         assert!((centre - 0.239_456_2).abs() < 1e-6, "{centre}");
         assert!((corner - 0.138_532_0).abs() < 1e-6, "{corner}");
         // Behind the source, or facing away: nothing.
-        assert_eq!(point_to_polygon(DVec3::new(0.5, 0.5, 2.0), DVec3::NEG_Z, &sq), 0.0);
-        assert_eq!(point_to_polygon(DVec3::new(0.5, 0.5, 0.0), DVec3::NEG_Z, &sq), 0.0);
+        assert_eq!(
+            point_to_polygon(DVec3::new(0.5, 0.5, 2.0), DVec3::NEG_Z, &sq),
+            0.0
+        );
+        assert_eq!(
+            point_to_polygon(DVec3::new(0.5, 0.5, 0.0), DVec3::NEG_Z, &sq),
+            0.0
+        );
     }
 
     #[test]

@@ -21,6 +21,7 @@ use rayon::prelude::*;
 use crate::geometry::sampling::{hash_seed, triangle_point};
 use crate::geometry::{Bvh, Ray, Rng, polygon};
 use crate::mesh::{Mesh, PatchId};
+use crate::scene::Scene;
 
 /// Which method computes form factors.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -48,6 +49,8 @@ impl FormFactorMethod {
 pub struct FormFactorParams {
     /// Shadow rays per receiver–patch pair (rounded to a square, stratified).
     pub visibility_rays: u32,
+    /// Probe with 4 rays first for non-emitting shooters (see [`visibility_fraction`]).
+    pub probe_visibility: bool,
     pub seed: u64,
 }
 
@@ -55,6 +58,7 @@ impl Default for FormFactorParams {
     fn default() -> Self {
         Self {
             visibility_rays: 16,
+            probe_visibility: true,
             seed: 1,
         }
     }
@@ -62,6 +66,7 @@ impl Default for FormFactorParams {
 
 /// What a row computation may look at.
 pub struct RowContext<'a> {
+    pub scene: &'a Scene,
     pub mesh: &'a Mesh,
     /// BVH over the patch triangles (ids = input face index).
     pub bvh: &'a Bvh,
@@ -103,10 +108,17 @@ impl PolygonSampler {
 
     /// Maps a point of the unit square to the polygon, area-preserving.
     pub fn point(&self, u1: f64, u2: f64) -> DVec3 {
-        let k = self.cdf.partition_point(|c| *c <= u1).min(self.triangles.len().saturating_sub(1));
+        let k = self
+            .cdf
+            .partition_point(|c| *c <= u1)
+            .min(self.triangles.len().saturating_sub(1));
         let lo = if k == 0 { 0.0 } else { self.cdf[k - 1] };
         let hi = self.cdf.get(k).copied().unwrap_or(1.0);
-        let u = if hi > lo { ((u1 - lo) / (hi - lo)).clamp(0.0, 1.0) } else { 0.5 };
+        let u = if hi > lo {
+            ((u1 - lo) / (hi - lo)).clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
         let [a, b, c] = self.triangles[k];
         triangle_point(a, b, c, u, u2)
     }
@@ -116,26 +128,44 @@ impl PolygonSampler {
     }
 }
 
-/// Fraction of `m × m` stratified rays from `x` to the sampler's polygon that arrive.
+/// Fraction of `m × m` stratified rays from `x` to the sampler's polygon that arrive. With
+/// `probe`, four rays go first and decide alone when they agree (all arrive or none do);
+/// a blocker smaller than the gaps between them can then be missed.
+#[allow(clippy::too_many_arguments)]
 pub fn visibility_fraction(
     bvh: &Bvh,
     x: DVec3,
     nx: DVec3,
     target: &PolygonSampler,
     m: u32,
+    probe: bool,
     epsilon: f64,
     ignore: [u32; 2],
     rng: &mut Rng,
 ) -> f64 {
     let origin = x + nx * epsilon;
+    let ray_to = |u1: f64, u2: f64| {
+        let y = target.point(u1, u2) + target.normal() * epsilon;
+        Ray::new(origin, y - origin)
+    };
+    if probe && m > 2 {
+        // A 2×2 stratified probe; if it agrees, take it (4 rays instead of m²).
+        let mut seen = 0;
+        for k in 0..4u32 {
+            let u1 = ((k % 2) as f64 + rng.next_f64()) / 2.0;
+            let u2 = ((k / 2) as f64 + rng.next_f64()) / 2.0;
+            seen += u32::from(!bvh.any_hit_except(&ray_to(u1, u2), 1e-9, 1.0 - 1e-9, ignore));
+        }
+        if seen == 0 || seen == 4 {
+            return seen as f64 / 4.0;
+        }
+    }
     let mut visible = 0u32;
     for a in 0..m {
         for b in 0..m {
             let u1 = (a as f64 + rng.next_f64()) / m as f64;
             let u2 = (b as f64 + rng.next_f64()) / m as f64;
-            let y = target.point(u1, u2) + target.normal() * epsilon;
-            let ray = Ray::new(origin, y - origin);
-            if !bvh.any_hit_except(&ray, 1e-9, 1.0 - 1e-9, ignore) {
+            if !bvh.any_hit_except(&ray_to(u1, u2), 1e-9, 1.0 - 1e-9, ignore) {
                 visible += 1;
             }
         }
@@ -158,6 +188,7 @@ pub fn occluded_point_to_polygon(
     poly: &[DVec3],
     full: &PolygonSampler,
     m: u32,
+    probe: bool,
     epsilon: f64,
     ignore: [u32; 2],
     rng: &mut Rng,
@@ -168,11 +199,11 @@ pub fn occluded_point_to_polygon(
     }
     let above = poly.iter().all(|v| (*v - x).dot(nx) >= 0.0);
     let v = if above {
-        visibility_fraction(bvh, x, nx, full, m, epsilon, ignore, rng)
+        visibility_fraction(bvh, x, nx, full, m, probe, epsilon, ignore, rng)
     } else {
         let clipped = polygon::clip_to_halfspace(poly, x, nx);
         let part = PolygonSampler::new(&clipped);
-        visibility_fraction(bvh, x, nx, &part, m, epsilon, ignore, rng)
+        visibility_fraction(bvh, x, nx, &part, m, probe, epsilon, ignore, rng)
     };
     analytic * v
 }
@@ -197,34 +228,40 @@ fn contour_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &Ato
     let sampler = PolygonSampler::new(&patch.polygon);
     let m = side(ctx.params.visibility_rays);
     let seed = ctx.params.seed;
+    // Light sources always get every ray: their shadows matter most.
+    let emitter = ctx.scene.materials[patch.material.0 as usize].is_emitter();
+    let probe = ctx.params.probe_visibility && !emitter;
     const CHUNK: usize = 256;
-    out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, chunk)| {
-        if cancel.load(Ordering::Relaxed) {
-            return;
-        }
-        for (k, f) in chunk.iter_mut().enumerate() {
-            let j = c * CHUNK + k;
-            let e = &mesh.elements[j];
-            if e.patch == shooter {
-                *f = 0.0;
-                continue;
+    out.par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(c, chunk)| {
+            if cancel.load(Ordering::Relaxed) {
+                return;
             }
-            let mut rng = Rng::new(hash_seed(&[seed, shooter.0 as u64, j as u64]), 0);
-            // BVH ids are input faces; a planar face cannot block rays between its points.
-            let ignore = [mesh.patch(e.patch).face as u32, patch.face as u32];
-            let v = occluded_point_to_polygon(
-                ctx.bvh,
-                e.centroid,
-                e.normal,
-                &patch.polygon,
-                &sampler,
-                m,
-                ctx.epsilon,
-                ignore,
-                &mut rng,
-            );
-            *f = v as f32;
-        }
-    });
+            for (k, f) in chunk.iter_mut().enumerate() {
+                let j = c * CHUNK + k;
+                let e = &mesh.elements[j];
+                if e.patch == shooter {
+                    *f = 0.0;
+                    continue;
+                }
+                let mut rng = Rng::new(hash_seed(&[seed, shooter.0 as u64, j as u64]), 0);
+                // BVH ids are input faces; a planar face cannot block rays between its points.
+                let ignore = [mesh.patch(e.patch).face as u32, patch.face as u32];
+                let v = occluded_point_to_polygon(
+                    ctx.bvh,
+                    e.centroid,
+                    e.normal,
+                    &patch.polygon,
+                    &sampler,
+                    m,
+                    probe,
+                    ctx.epsilon,
+                    ignore,
+                    &mut rng,
+                );
+                *f = v as f32;
+            }
+        });
     !cancel.load(Ordering::Relaxed)
 }

@@ -420,7 +420,9 @@ mod tests {
                 cull_back: t.cull_back,
             };
             let limit = best.map_or(f32::INFINITY, |b| b.0 as f32);
-            if let Some((tt, ..)) = intersect(&tri, ray.origin.as_vec3(), ray.dir.as_vec3(), 0.0, limit) {
+            if let Some((tt, ..)) =
+                intersect(&tri, ray.origin.as_vec3(), ray.dir.as_vec3(), 0.0, limit)
+            {
                 best = Some((tt as f64, t.id));
             }
         }
@@ -447,7 +449,11 @@ mod tests {
         let mut hits = 0;
         for _ in 0..2000 {
             let o = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 12.0 - 1.0;
-            let d = DVec3::new(rng.next_f64() - 0.5, rng.next_f64() - 0.5, rng.next_f64() - 0.5);
+            let d = DVec3::new(
+                rng.next_f64() - 0.5,
+                rng.next_f64() - 0.5,
+                rng.next_f64() - 0.5,
+            );
             let ray = Ray::new(o, d);
             let a = bvh.closest_hit(&ray, 0.0, f64::INFINITY);
             let b = brute_closest(&tris, &ray);
@@ -471,7 +477,10 @@ mod tests {
         let h = bvh.closest_hit(&down, 0.0, 10.0).expect("front hit");
         assert!(h.front && (h.t - 1.0).abs() < 1e-6 && h.id == 9);
         assert!(bvh.closest_hit(&up, 0.0, 10.0).is_none());
-        assert!(bvh.any_hit(&up, 0.0, 10.0), "back faces still block shadow rays");
+        assert!(
+            bvh.any_hit(&up, 0.0, 10.0),
+            "back faces still block shadow rays"
+        );
         assert!(!bvh.any_hit(&down, 0.0, 0.5));
     }
 }

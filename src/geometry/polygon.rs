@@ -50,7 +50,9 @@ pub fn centroid(poly: &[DVec3]) -> DVec3 {
 pub fn planarity_error(poly: &[DVec3]) -> f64 {
     let Some(n) = normal(poly) else { return 0.0 };
     let c = poly.iter().copied().sum::<DVec3>() / poly.len() as f64;
-    poly.iter().map(|p| (p - c).dot(n).abs()).fold(0.0, f64::max)
+    poly.iter()
+        .map(|p| (p - c).dot(n).abs())
+        .fold(0.0, f64::max)
 }
 
 /// True when every corner turns the same way (a convex polygon, collinear corners allowed).
@@ -84,9 +86,9 @@ pub fn triangulate(poly: &[DVec3]) -> Vec<[usize; 3]> {
             if (b - a).cross(c - b).dot(n) <= 0.0 {
                 continue;
             }
-            let inside = idx.iter().any(|&j| {
-                j != ia && j != ib && j != ic && point_in_triangle(poly[j], a, b, c, n)
-            });
+            let inside = idx
+                .iter()
+                .any(|&j| j != ia && j != ib && j != ic && point_in_triangle(poly[j], a, b, c, n));
             if !inside {
                 out.push([ia, ib, ic]);
                 idx.remove(i);
@@ -163,7 +165,10 @@ mod tests {
         assert!(!is_convex(&l));
         let tris = triangulate(&l);
         assert_eq!(tris.len(), 4);
-        let total: f64 = tris.iter().map(|t| area(&[l[t[0]], l[t[1]], l[t[2]]])).sum();
+        let total: f64 = tris
+            .iter()
+            .map(|t| area(&[l[t[0]], l[t[1]], l[t[2]]]))
+            .sum();
         assert!((total - 3.0).abs() < 1e-12);
     }
 

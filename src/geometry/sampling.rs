@@ -108,7 +108,11 @@ mod tests {
 
     #[test]
     fn basis_is_orthonormal() {
-        for n in [DVec3::X, DVec3::NEG_Z, DVec3::new(0.3, -0.4, 0.5).normalize_or_zero()] {
+        for n in [
+            DVec3::X,
+            DVec3::NEG_Z,
+            DVec3::new(0.3, -0.4, 0.5).normalize_or_zero(),
+        ] {
             let (t, b) = basis(n);
             assert!(t.dot(n).abs() < 1e-12 && b.dot(n).abs() < 1e-12 && t.dot(b).abs() < 1e-12);
             assert!((t.length() - 1.0).abs() < 1e-12 && (b.length() - 1.0).abs() < 1e-12);

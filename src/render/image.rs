@@ -125,10 +125,14 @@ impl Image {
         for y in (0..height).rev() {
             for x in 0..width {
                 let mut c = [0f64; 3];
-                for k in 0..channels {
+                for ck in c.iter_mut().take(channels) {
                     let b = [data[at], data[at + 1], data[at + 2], data[at + 3]];
                     at += 4;
-                    c[k] = if little { f32::from_le_bytes(b) } else { f32::from_be_bytes(b) } as f64;
+                    *ck = if little {
+                        f32::from_le_bytes(b)
+                    } else {
+                        f32::from_be_bytes(b)
+                    } as f64;
                 }
                 if channels == 1 {
                     c = [c[0]; 3];
@@ -164,7 +168,12 @@ pub fn srgb8(linear: f64) -> u8 {
 /// Relative RMS error √(Σ‖I − R‖²) / √(Σ‖R‖²) over pixels where `mask` is true.
 pub fn relative_rms(image: &Image, reference: &Image, mask: &[bool]) -> Result<f64, ImageError> {
     if image.width != reference.width || image.height != reference.height {
-        return Err(ImageError::Size(image.width, image.height, reference.width, reference.height));
+        return Err(ImageError::Size(
+            image.width,
+            image.height,
+            reference.width,
+            reference.height,
+        ));
     }
     let mut num = 0.0;
     let mut den = 0.0;
@@ -192,7 +201,10 @@ mod tests {
         let bytes = std::fs::read(&p).expect("read");
         // The first stored pixel is the bottom-left one.
         let header = b"PF\n3 2\n-1.0\n".len();
-        assert_eq!(f32::from_le_bytes(bytes[header..header + 4].try_into().expect("4")), 0.0);
+        assert_eq!(
+            f32::from_le_bytes(bytes[header..header + 4].try_into().expect("4")),
+            0.0
+        );
         assert_eq!(Image::load_pfm(&p).expect("load"), img);
     }
 

@@ -14,8 +14,8 @@ pub use crate::scene::Camera;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::geometry::{Bvh, Ray, Rng};
 use crate::geometry::sampling::hash_seed;
+use crate::geometry::{Bvh, Ray, Rng};
 use crate::mesh::Mesh;
 use crate::scene::{Rgb, Scene};
 
@@ -54,7 +54,9 @@ fn shade(view: &SolutionView, ray: &Ray) -> FirstHit {
     };
     let tri = view.mesh.triangles[hit.id as usize];
     let element = view.mesh.triangle_element[hit.id as usize];
-    let patch = view.mesh.patch(view.mesh.elements[element.0 as usize].patch);
+    let patch = view
+        .mesh
+        .patch(view.mesh.elements[element.0 as usize].patch);
     let material = &view.scene.materials[patch.material.0 as usize];
     if !hit.front && !view.scene.two_sided {
         return FirstHit::Surface(Rgb::ZERO); // the unlit back of a one-sided face
@@ -83,19 +85,22 @@ pub fn render_solution(view: &SolutionView, settings: &RenderSettings) -> Image 
     let (w, h) = (settings.width, settings.height);
     let cam = settings.camera;
     let mut img = Image::new(w, h);
-    img.pixels.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
-        for (x, px) in row.iter_mut().enumerate() {
-            let mut sum = DVec3::ZERO;
-            pixel_samples(x as u32, y as u32, settings.spp, settings.seed, |sx, sy| {
-                let ray = Ray::new(cam.eye, cam.ray_dir(sx, sy, w, h));
-                sum += match shade(view, &ray) {
-                    FirstHit::Background => Rgb::ZERO,
-                    FirstHit::Emitter(e) | FirstHit::Surface(e) => e,
-                };
-            });
-            *px = sum / settings.spp.max(1) as f64;
-        }
-    });
+    img.pixels
+        .par_chunks_mut(w as usize)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, px) in row.iter_mut().enumerate() {
+                let mut sum = DVec3::ZERO;
+                pixel_samples(x as u32, y as u32, settings.spp, settings.seed, |sx, sy| {
+                    let ray = Ray::new(cam.eye, cam.ray_dir(sx, sy, w, h));
+                    sum += match shade(view, &ray) {
+                        FirstHit::Background => Rgb::ZERO,
+                        FirstHit::Emitter(e) | FirstHit::Surface(e) => e,
+                    };
+                });
+                *px = sum / settings.spp.max(1) as f64;
+            }
+        });
     img
 }
 
@@ -106,21 +111,25 @@ pub fn render_solution(view: &SolutionView, settings: &RenderSettings) -> Image 
 pub fn error_mask(view: &SolutionView, camera: &Camera, width: u32, height: u32) -> Vec<bool> {
     let (w, h) = (width as usize, height as usize);
     let mut surface_only = vec![false; w * h];
-    surface_only.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (x, m) in row.iter_mut().enumerate() {
-            *m = (0..64).all(|k| {
-                let sx = x as f64 + ((k % 8) as f64 + 0.5) / 8.0;
-                let sy = y as f64 + ((k / 8) as f64 + 0.5) / 8.0;
-                let ray = Ray::new(camera.eye, camera.ray_dir(sx, sy, width, height));
-                matches!(shade(view, &ray), FirstHit::Surface(_))
-            });
-        }
-    });
+    surface_only
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, m) in row.iter_mut().enumerate() {
+                *m = (0..64).all(|k| {
+                    let sx = x as f64 + ((k % 8) as f64 + 0.5) / 8.0;
+                    let sy = y as f64 + ((k / 8) as f64 + 0.5) / 8.0;
+                    let ray = Ray::new(camera.eye, camera.ray_dir(sx, sy, width, height));
+                    matches!(shade(view, &ray), FirstHit::Surface(_))
+                });
+            }
+        });
     let mut mask = vec![false; w * h];
     for y in 0..h {
         for x in 0..w {
-            mask[y * w + x] = (y.saturating_sub(1)..(y + 2).min(h))
-                .all(|yy| (x.saturating_sub(1)..(x + 2).min(w)).all(|xx| surface_only[yy * w + xx]));
+            mask[y * w + x] = (y.saturating_sub(1)..(y + 2).min(h)).all(|yy| {
+                (x.saturating_sub(1)..(x + 2).min(w)).all(|xx| surface_only[yy * w + xx])
+            });
         }
     }
     mask

@@ -42,7 +42,9 @@ impl<'a> PathTracer<'a> {
         let mut tri_face = Vec::new();
         let mut lights = Vec::new();
         for (fi, f) in scene.faces.iter().enumerate() {
-            let Some(n) = polygon::normal(&f.vertices) else { continue };
+            let Some(n) = polygon::normal(&f.vertices) else {
+                continue;
+            };
             let m = &scene.materials[f.material.0 as usize];
             for t in polygon::triangulate(&f.vertices) {
                 let v = [f.vertices[t[0]], f.vertices[t[1]], f.vertices[t[2]]];
@@ -91,7 +93,9 @@ impl<'a> PathTracer<'a> {
         let mut ray = *ray;
         let two_sided = self.scene.two_sided;
         for depth in 0..10_000 {
-            let Some(hit) = self.bvh.closest_hit(&ray, 0.0, f64::INFINITY) else { break };
+            let Some(hit) = self.bvh.closest_hit(&ray, 0.0, f64::INFINITY) else {
+                break;
+            };
             let (face, mut n) = self.tri_face[hit.id as usize];
             if !hit.front {
                 if !two_sided {
@@ -131,7 +135,10 @@ impl<'a> PathTracer<'a> {
             return Rgb::ZERO;
         }
         let u = rng.next_f64();
-        let k = self.light_cdf.partition_point(|c| *c <= u).min(self.lights.len() - 1);
+        let k = self
+            .light_cdf
+            .partition_point(|c| *c <= u)
+            .min(self.lights.len() - 1);
         let pk = self.light_cdf[k] - if k == 0 { 0.0 } else { self.light_cdf[k - 1] };
         let l = &self.lights[k];
         let [a, b, c] = l.vertices;
@@ -153,7 +160,10 @@ impl<'a> PathTracer<'a> {
         }
         let origin = x + n * self.epsilon;
         let target = y + l.normal * self.epsilon * if -l.normal.dot(w) > 0.0 { 1.0 } else { -1.0 };
-        if self.bvh.any_hit(&Ray::new(origin, target - origin), 1e-9, 1.0 - 1e-9) {
+        if self
+            .bvh
+            .any_hit(&Ray::new(origin, target - origin), 1e-9, 1.0 - 1e-9)
+        {
             return Rgb::ZERO;
         }
         let pdf_area = pk / l.area;
@@ -163,24 +173,31 @@ impl<'a> PathTracer<'a> {
 
 /// Renders a reference image with `settings.spp` paths per pixel (all cores).
 /// `progress` is called with the number of finished rows.
-pub fn reference(scene: &Scene, settings: &RenderSettings, progress: &(dyn Fn(usize) + Sync)) -> Image {
+pub fn reference(
+    scene: &Scene,
+    settings: &RenderSettings,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Image {
     let pt = PathTracer::new(scene);
     let (w, h) = (settings.width, settings.height);
     let cam = settings.camera;
     let mut img = Image::new(w, h);
     let done = AtomicUsize::new(0);
-    img.pixels.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
-        for (x, px) in row.iter_mut().enumerate() {
-            let mut rng = Rng::new(hash_seed(&[settings.seed, x as u64, y as u64, 0x9a7]), 3);
-            let mut sum = Rgb::ZERO;
-            pixel_samples(x as u32, y as u32, settings.spp, settings.seed, |sx, sy| {
-                let ray = Ray::new(cam.eye, cam.ray_dir(sx, sy, w, h));
-                sum += pt.radiance(&ray, &mut rng);
-            });
-            *px = sum / settings.spp.max(1) as f64;
-        }
-        progress(done.fetch_add(1, Ordering::Relaxed) + 1);
-    });
+    img.pixels
+        .par_chunks_mut(w as usize)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, px) in row.iter_mut().enumerate() {
+                let mut rng = Rng::new(hash_seed(&[settings.seed, x as u64, y as u64, 0x9a7]), 3);
+                let mut sum = Rgb::ZERO;
+                pixel_samples(x as u32, y as u32, settings.spp, settings.seed, |sx, sy| {
+                    let ray = Ray::new(cam.eye, cam.ray_dir(sx, sy, w, h));
+                    sum += pt.radiance(&ray, &mut rng);
+                });
+                *px = sum / settings.spp.max(1) as f64;
+            }
+            progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+        });
     img
 }
 
@@ -192,8 +209,14 @@ mod tests {
     #[test]
     fn furnace_path_tracer_returns_e_over_one_minus_rho() {
         for rho in [0.5, 0.8] {
-            let scene = Scene::builtin("furnace", &LoadOptions { rho: Some(rho), ..Default::default() })
-                .expect("furnace");
+            let scene = Scene::builtin(
+                "furnace",
+                &LoadOptions {
+                    rho: Some(rho),
+                    ..Default::default()
+                },
+            )
+            .expect("furnace");
             let pt = PathTracer::new(&scene);
             let mut rng = Rng::new(11, 0);
             let n = 20_000;
@@ -213,8 +236,14 @@ mod tests {
             let mean = sum / n as f64;
             let sd = ((sum2 / n as f64 - mean * mean) / n as f64).sqrt();
             let exact = 1.0 / (1.0 - rho);
-            assert!((mean - exact).abs() < 4.0 * sd + 1e-9, "rho {rho}: {mean} ± {sd} vs {exact}");
-            assert!(sd < 0.02 * exact, "noise too large to make the test meaningful");
+            assert!(
+                (mean - exact).abs() < 4.0 * sd + 1e-9,
+                "rho {rho}: {mean} ± {sd} vs {exact}"
+            );
+            assert!(
+                sd < 0.02 * exact,
+                "noise too large to make the test meaningful"
+            );
         }
     }
 }

@@ -47,7 +47,9 @@ impl Camera {
             return Err(bad("vfov_deg must be in (0, 180)"));
         }
         if cam.basis().is_none() {
-            return Err(bad("eye and target must differ and the view must not be straight up or down"));
+            return Err(bad(
+                "eye and target must differ and the view must not be straight up or down",
+            ));
         }
         Ok(cam)
     }

@@ -123,13 +123,18 @@ impl Scene {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "scene".into());
-        let mut scene = validate::load(&path.display().to_string(), &text, &mut |mtl| {
-            let p = dir.join(mtl);
-            match std::fs::read_to_string(&p) {
-                Ok(t) => Ok((p.display().to_string(), t)),
-                Err(source) => Err(SceneError::Io { path: p, source }),
-            }
-        }, opts)?;
+        let mut scene = validate::load(
+            &path.display().to_string(),
+            &text,
+            &mut |mtl| {
+                let p = dir.join(mtl);
+                match std::fs::read_to_string(&p) {
+                    Ok(t) => Ok((p.display().to_string(), t)),
+                    Err(source) => Err(SceneError::Io { path: p, source }),
+                }
+            },
+            opts,
+        )?;
         scene.name = name;
         scene.source = Some(path.to_path_buf());
         Ok(scene)
@@ -142,15 +147,20 @@ impl Scene {
         mtls: &[(&str, &str)],
         opts: &LoadOptions,
     ) -> Result<Scene, SceneError> {
-        let mut scene = validate::load(name, obj, &mut |mtl| {
-            mtls.iter()
-                .find(|(n, _)| *n == mtl)
-                .map(|(n, t)| (n.to_string(), t.to_string()))
-                .ok_or_else(|| SceneError::Invalid {
-                    file: name.to_string(),
-                    message: format!("material library '{mtl}' not found"),
-                })
-        }, opts)?;
+        let mut scene = validate::load(
+            name,
+            obj,
+            &mut |mtl| {
+                mtls.iter()
+                    .find(|(n, _)| *n == mtl)
+                    .map(|(n, t)| (n.to_string(), t.to_string()))
+                    .ok_or_else(|| SceneError::Invalid {
+                        file: name.to_string(),
+                        message: format!("material library '{mtl}' not found"),
+                    })
+            },
+            opts,
+        )?;
         scene.name = name.to_string();
         Ok(scene)
     }
@@ -178,8 +188,12 @@ impl Scene {
                     });
                 }
                 let mtl = format!("newmtl wall\nKd {rho} {rho} {rho}\nKe 1 1 1\n");
-                let mut s =
-                    Scene::from_obj_str("furnace.obj", FURNACE_OBJ, &[("furnace.mtl", &mtl)], opts)?;
+                let mut s = Scene::from_obj_str(
+                    "furnace.obj",
+                    FURNACE_OBJ,
+                    &[("furnace.mtl", &mtl)],
+                    opts,
+                )?;
                 let _ = FURNACE_MTL;
                 s.name = "furnace".into();
                 s.camera = Some(Camera {
@@ -228,18 +242,33 @@ mod tests {
         let s = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         assert_eq!(s.faces.len(), 19);
         assert!(s.warnings.is_empty(), "{:?}", s.warnings);
-        let light = s.materials.iter().find(|m| m.name == "light").expect("light");
+        let light = s
+            .materials
+            .iter()
+            .find(|m| m.name == "light")
+            .expect("light");
         assert_eq!(light.emission, DVec3::new(17.0, 12.0, 4.0));
         // Walls, floor and ceiling face the room's centre; block faces face away from it.
         let room = DVec3::new(278.0, 274.0, 280.0);
         for f in &s.faces[..8] {
             let n = polygon::normal(&f.vertices).expect("normal");
-            assert!((room - polygon::centroid(&f.vertices)).dot(n) > 0.0, "face line {}", f.line);
+            assert!(
+                (room - polygon::centroid(&f.vertices)).dot(n) > 0.0,
+                "face line {}",
+                f.line
+            );
         }
-        for (range, c) in [(8..13, DVec3::new(186.0, 82.0, 169.0)), (13..18, DVec3::new(368.0, 165.0, 351.0))] {
+        for (range, c) in [
+            (8..13, DVec3::new(186.0, 82.0, 169.0)),
+            (13..18, DVec3::new(368.0, 165.0, 351.0)),
+        ] {
             for f in &s.faces[range] {
                 let n = polygon::normal(&f.vertices).expect("normal");
-                assert!((polygon::centroid(&f.vertices) - c).dot(n) > 0.0, "block face line {}", f.line);
+                assert!(
+                    (polygon::centroid(&f.vertices) - c).dot(n) > 0.0,
+                    "block face line {}",
+                    f.line
+                );
             }
         }
         let ln = polygon::normal(&s.faces[18].vertices).expect("light normal");
@@ -248,8 +277,14 @@ mod tests {
 
     #[test]
     fn furnace_faces_point_inward() {
-        let s = Scene::builtin("furnace", &LoadOptions { rho: Some(0.5), ..Default::default() })
-            .expect("furnace");
+        let s = Scene::builtin(
+            "furnace",
+            &LoadOptions {
+                rho: Some(0.5),
+                ..Default::default()
+            },
+        )
+        .expect("furnace");
         assert_eq!(s.faces.len(), 6);
         assert_eq!(s.materials[0].reflectance, DVec3::splat(0.5));
         for f in &s.faces {

@@ -61,7 +61,11 @@ fn numbers(
             if x.is_finite() {
                 Ok(x)
             } else {
-                Err(parse_err(file, line, format!("'{what}': '{w}' is not a finite number")))
+                Err(parse_err(
+                    file,
+                    line,
+                    format!("'{what}': '{w}' is not a finite number"),
+                ))
             }
         })
         .collect()
@@ -153,8 +157,9 @@ fn scan_obj(file: &str, text: &str) -> Result<ObjScan, SceneError> {
     let mut unknown: Vec<_> = unknown.into_iter().collect();
     unknown.sort();
     for (k, n) in unknown {
-        scan.warnings
-            .push(format!("{file}: ignored {n} line(s) with unknown statement '{k}'"));
+        scan.warnings.push(format!(
+            "{file}: ignored {n} line(s) with unknown statement '{k}'"
+        ));
     }
     Ok(scan)
 }
@@ -180,9 +185,16 @@ fn scan_mtl(file: &str, text: &str, warnings: &mut Vec<String>) -> Result<MtlSca
             }
             "Kd" | "Ka" | "Ks" | "Ke" | "Tf" => {
                 if current.is_none() {
-                    return Err(parse_err(file, line, format!("'{key}' before any 'newmtl'")));
+                    return Err(parse_err(
+                        file,
+                        line,
+                        format!("'{key}' before any 'newmtl'"),
+                    ));
                 }
-                if args.first().is_some_and(|w| *w == "spectral" || *w == "xyz") {
+                if args
+                    .first()
+                    .is_some_and(|w| *w == "spectral" || *w == "xyz")
+                {
                     return Err(parse_err(
                         file,
                         line,
@@ -209,7 +221,10 @@ fn scan_mtl(file: &str, text: &str, warnings: &mut Vec<String>) -> Result<MtlSca
                     return Err(parse_err(
                         file,
                         line,
-                        format!("'{key}' values must not be negative, got {} {} {}", v[0], v[1], v[2]),
+                        format!(
+                            "'{key}' values must not be negative, got {} {} {}",
+                            v[0], v[1], v[2]
+                        ),
                     ));
                 }
                 let name = current.clone().unwrap_or_default();
@@ -231,11 +246,14 @@ fn scan_mtl(file: &str, text: &str, warnings: &mut Vec<String>) -> Result<MtlSca
     Ok(scan)
 }
 
+/// Returns (display name, text) of a named material library.
+pub(super) type MtlReader<'a> = dyn FnMut(&str) -> Result<(String, String), SceneError> + 'a;
+
 /// Loads OBJ text; `read_mtl` returns (display name, text) of a named material library.
 pub(super) fn load(
     file: &str,
     text: &str,
-    read_mtl: &mut dyn FnMut(&str) -> Result<(String, String), SceneError>,
+    read_mtl: &mut MtlReader,
     opts: &LoadOptions,
 ) -> Result<Scene, SceneError> {
     let scan = scan_obj(file, text)?;
@@ -265,7 +283,6 @@ pub(super) fn load(
         triangulate: false,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let loader = |p: &std::path::Path| {
         let key = p.to_string_lossy().into_owned();
@@ -303,8 +320,12 @@ pub(super) fn load(
     let mut materials: Vec<Material> = tmats
         .iter()
         .map(|m| {
-            let kd = m.diffuse.map_or(DVec3::splat(0.5), |d| DVec3::new(d[0], d[1], d[2]));
-            let ke = m.emissive.map_or(DVec3::ZERO, |d| DVec3::new(d[0], d[1], d[2]));
+            let kd = m
+                .diffuse
+                .map_or(DVec3::splat(0.5), |d| DVec3::new(d[0], d[1], d[2]));
+            let ke = m
+                .emissive
+                .map_or(DVec3::ZERO, |d| DVec3::new(d[0], d[1], d[2]));
             Material {
                 name: m.name.clone(),
                 reflectance: kd.clamp(DVec3::ZERO, DVec3::splat(MAX_REFLECTANCE)),
@@ -349,7 +370,11 @@ pub(super) fn load(
             let mut verts: Vec<DVec3> = Vec::with_capacity(idx.len());
             for &i in idx {
                 let k = i as usize * 3;
-                let p = DVec3::new(mesh.positions[k], mesh.positions[k + 1], mesh.positions[k + 2]);
+                let p = DVec3::new(
+                    mesh.positions[k],
+                    mesh.positions[k + 1],
+                    mesh.positions[k + 2],
+                );
                 if verts.last() != Some(&p) {
                     verts.push(p);
                 }
@@ -372,12 +397,22 @@ pub(super) fn load(
                 for t in polygon::triangulate(&verts) {
                     let tri = vec![verts[t[0]], verts[t[1]], verts[t[2]]];
                     if polygon::area(&tri) > 1e-12 * scale * scale {
-                        faces.push(Face { vertices: tri, material, source_face: this, line });
+                        faces.push(Face {
+                            vertices: tri,
+                            material,
+                            source_face: this,
+                            line,
+                        });
                     }
                 }
                 continue;
             }
-            faces.push(Face { vertices: verts, material, source_face: this, line });
+            faces.push(Face {
+                vertices: verts,
+                material,
+                source_face: this,
+                line,
+            });
         }
     }
     if no_material > 0 {
@@ -389,7 +424,9 @@ pub(super) fn load(
         warnings.push(format!("{file}: dropped {dropped} zero-area face(s)"));
     }
     if split > 0 {
-        warnings.push(format!("{file}: split {split} non-planar face(s) into triangles"));
+        warnings.push(format!(
+            "{file}: split {split} non-planar face(s) into triangles"
+        ));
     }
     if faces.is_empty() {
         return Err(SceneError::Invalid {
@@ -409,7 +446,9 @@ pub(super) fn load(
     if scene.emitted_power().max_element() <= 0.0 {
         return Err(SceneError::Invalid {
             file: file.to_string(),
-            message: "no emitter: no face has a material with positive Ke, so the image would be black".into(),
+            message:
+                "no emitter: no face has a material with positive Ke, so the image would be black"
+                    .into(),
         });
     }
     Ok(scene)

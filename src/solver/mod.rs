@@ -27,6 +27,8 @@ use crate::scene::{MaterialId, Rgb, Scene};
 pub struct SolverConfig {
     /// Element edge length; `None` = [`mesh::default_element_size`].
     pub element_size: Option<f64>,
+    /// Patch (shooter) edge length; `None` = [`mesh::default_patch_size`].
+    pub patch_size: Option<f64>,
     pub method: FormFactorMethod,
     pub formfactor: FormFactorParams,
     /// Memory for cached form-factor rows, in bytes.
@@ -37,6 +39,7 @@ impl Default for SolverConfig {
     fn default() -> Self {
         Self {
             element_size: None,
+            patch_size: None,
             method: FormFactorMethod::Contour,
             formfactor: FormFactorParams::default(),
             row_cache_bytes: 512 << 20,
@@ -117,7 +120,11 @@ impl ProgressiveSolver {
         let size = config
             .element_size
             .unwrap_or_else(|| mesh::default_element_size(&scene));
-        let mesh = Mesh::build(&scene, size)?;
+        let patch = config
+            .patch_size
+            .unwrap_or_else(|| mesh::default_patch_size(&scene))
+            .max(size);
+        let mesh = Mesh::build_with(&scene, size, patch)?;
         let bvh = Bvh::build(&mesh.patch_triangles());
         let epsilon = 1e-6 * mesh.bounds().diagonal().max(1e-12);
         let mut s = Self {
@@ -181,7 +188,12 @@ impl ProgressiveSolver {
 
     /// Rebuilds the mesh with a new element size and restarts from dark.
     pub fn remesh(&mut self, element_size: f64) -> Result<(), SolverError> {
-        let mesh = Mesh::build(&self.scene, element_size)?;
+        let patch = self
+            .config
+            .patch_size
+            .unwrap_or_else(|| mesh::default_patch_size(&self.scene))
+            .max(element_size);
+        let mesh = Mesh::build_with(&self.scene, element_size, patch)?;
         self.bvh = Bvh::build(&mesh.patch_triangles());
         self.mesh = mesh;
         self.config.element_size = Some(element_size);
@@ -260,7 +272,11 @@ impl ProgressiveSolver {
 
     /// Per-element radiance for display: `B_j + ρ_j · ambient` when `with_ambient`.
     pub fn element_radiance(&self, with_ambient: bool) -> Vec<Rgb> {
-        let ambient = if with_ambient { self.ambient() } else { Rgb::ZERO };
+        let ambient = if with_ambient {
+            self.ambient()
+        } else {
+            Rgb::ZERO
+        };
         self.mesh
             .elements
             .iter()
@@ -296,6 +312,7 @@ impl ProgressiveSolver {
         }
         let mut out = vec![0f32; self.mesh.elements.len()];
         let ctx = RowContext {
+            scene: &self.scene,
             mesh: &self.mesh,
             bvh: &self.bvh,
             params: &self.config.formfactor,
@@ -329,7 +346,8 @@ impl ProgressiveSolver {
             if f == 0.0 {
                 continue;
             }
-            let rho = self.scene.materials[self.mesh.patches[e.patch.0 as usize].material.0 as usize]
+            let rho = self.scene.materials
+                [self.mesh.patches[e.patch.0 as usize].material.0 as usize]
                 .reflectance;
             let h = delta * f;
             self.incident[j] += h;
@@ -357,11 +375,15 @@ impl ProgressiveSolver {
         loop {
             if self.unshot_fraction() <= stop.unshot
                 || stop.max_shots.is_some_and(|n| self.shots >= n)
-                || stop.max_seconds.is_some_and(|s| start.elapsed().as_secs_f64() >= s)
+                || stop
+                    .max_seconds
+                    .is_some_and(|s| start.elapsed().as_secs_f64() >= s)
             {
                 return;
             }
-            let Some(shooter) = self.shoot(cancel) else { return };
+            let Some(shooter) = self.shoot(cancel) else {
+                return;
+            };
             let ambient = self.ambient();
             on_shot(&ShotRecord {
                 shot: self.shots,
@@ -386,7 +408,10 @@ impl ProgressiveSolver {
             return Err(SolverError::NoSuchMaterial(id.0));
         }
         let max = crate::scene::MAX_REFLECTANCE;
-        if !reflectance.is_finite() || reflectance.min_element() < 0.0 || reflectance.max_element() > max {
+        if !reflectance.is_finite()
+            || reflectance.min_element() < 0.0
+            || reflectance.max_element() > max
+        {
             return Err(SolverError::BadValue {
                 what: "reflectance",
                 range: "in [0, 0.999]",
