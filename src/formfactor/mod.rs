@@ -177,6 +177,53 @@ fn side(rays: u32) -> u32 {
     ((rays.max(1) as f64).sqrt().round() as u32).max(1)
 }
 
+/// Whether a whole receiving patch sees the whole shooting patch: both lie strictly in
+/// front of each other and 4 × 4 rays between points near the receiver's corners and
+/// stratified points on the shooter, plus centre to centre, all arrive. Then every element
+/// of the receiver skips its own shadow rays (a blocker that slips between these 17 rays is
+/// missed, as with the per-element probe).
+fn patch_pair_unblocked(
+    ctx: &RowContext,
+    receiver: &crate::mesh::Patch,
+    shooter: &crate::mesh::Patch,
+    shooter_id: PatchId,
+    receiver_index: usize,
+    ignore: [u32; 2],
+) -> bool {
+    let eps = ctx.epsilon;
+    let in_front = |points: &[DVec3], of: &crate::mesh::Patch| {
+        points.iter().all(|p| (*p - of.centroid).dot(of.normal) > 10.0 * eps)
+    };
+    if !in_front(&shooter.polygon, receiver) || !in_front(&receiver.polygon, shooter) {
+        return false;
+    }
+    let mut rng = Rng::new(
+        hash_seed(&[ctx.params.seed, shooter_id.0 as u64, receiver_index as u64, 0x5a4f7]),
+        1,
+    );
+    let sampler = PolygonSampler::new(&shooter.polygon);
+    let lift = |p: DVec3, n: DVec3| p + n * eps;
+    let blocked = |from: DVec3, to: DVec3| {
+        let (a, b) = (lift(from, receiver.normal), lift(to, shooter.normal));
+        ctx.bvh.any_hit_except(&Ray::new(a, b - a), 1e-9, 1.0 - 1e-9, ignore)
+    };
+    if blocked(receiver.centroid, shooter.centroid) {
+        return false;
+    }
+    for corner in &receiver.polygon {
+        // A little inside the corner, off the neighbouring faces.
+        let from = *corner + (receiver.centroid - *corner) * 0.01;
+        for k in 0..4u32 {
+            let u1 = ((k % 2) as f64 + rng.next_f64()) / 2.0;
+            let u2 = ((k / 2) as f64 + rng.next_f64()) / 2.0;
+            if blocked(from, sampler.point(u1, u2)) {
+                return false;
+            }
+        }
+    }
+    true
+}
+
 /// Lambert's point-to-polygon form factor times the visible fraction of stratified shadow
 /// rays to the part of the polygon above the receiver's tangent plane (`full` samples the
 /// whole polygon and is used when no clipping is needed).
@@ -231,37 +278,49 @@ fn contour_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &Ato
     // Light sources always get every ray: their shadows matter most.
     let emitter = ctx.scene.materials[patch.material.0 as usize].is_emitter();
     let probe = ctx.params.probe_visibility && !emitter;
-    const CHUNK: usize = 256;
-    out.par_chunks_mut(CHUNK)
-        .enumerate()
-        .for_each(|(c, chunk)| {
-            if cancel.load(Ordering::Relaxed) {
-                return;
+    // One slice of `out` per receiving patch (a patch's elements are contiguous).
+    let mut slices = Vec::with_capacity(mesh.patches.len());
+    let mut rest = out;
+    for (k, r) in mesh.patches.iter().enumerate() {
+        let (head, tail) = rest.split_at_mut((r.elements.end - r.elements.start) as usize);
+        slices.push((k, head));
+        rest = tail;
+    }
+    slices.into_par_iter().for_each(|(k, slice)| {
+        if cancel.load(Ordering::Relaxed) {
+            return;
+        }
+        let receiver = &mesh.patches[k];
+        let first = receiver.elements.start as usize;
+        if k == shooter.0 as usize {
+            slice.fill(0.0);
+            return;
+        }
+        // BVH ids are input faces; a planar face cannot block rays between its points.
+        let ignore = [receiver.face as u32, patch.face as u32];
+        let all_visible = probe && patch_pair_unblocked(ctx, receiver, patch, shooter, k, ignore);
+        for (i, f) in slice.iter_mut().enumerate() {
+            let j = first + i;
+            let e = &mesh.elements[j];
+            if all_visible {
+                *f = contour::point_to_polygon(e.centroid, e.normal, &patch.polygon) as f32;
+                continue;
             }
-            for (k, f) in chunk.iter_mut().enumerate() {
-                let j = c * CHUNK + k;
-                let e = &mesh.elements[j];
-                if e.patch == shooter {
-                    *f = 0.0;
-                    continue;
-                }
-                let mut rng = Rng::new(hash_seed(&[seed, shooter.0 as u64, j as u64]), 0);
-                // BVH ids are input faces; a planar face cannot block rays between its points.
-                let ignore = [mesh.patch(e.patch).face as u32, patch.face as u32];
-                let v = occluded_point_to_polygon(
-                    ctx.bvh,
-                    e.centroid,
-                    e.normal,
-                    &patch.polygon,
-                    &sampler,
-                    m,
-                    probe,
-                    ctx.epsilon,
-                    ignore,
-                    &mut rng,
-                );
-                *f = v as f32;
-            }
-        });
+            let mut rng = Rng::new(hash_seed(&[seed, shooter.0 as u64, j as u64]), 0);
+            let v = occluded_point_to_polygon(
+                ctx.bvh,
+                e.centroid,
+                e.normal,
+                &patch.polygon,
+                &sampler,
+                m,
+                probe,
+                ctx.epsilon,
+                ignore,
+                &mut rng,
+            );
+            *f = v as f32;
+        }
+    });
     !cancel.load(Ordering::Relaxed)
 }
