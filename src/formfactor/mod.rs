@@ -192,20 +192,28 @@ fn patch_pair_unblocked(
 ) -> bool {
     let eps = ctx.epsilon;
     let in_front = |points: &[DVec3], of: &crate::mesh::Patch| {
-        points.iter().all(|p| (*p - of.centroid).dot(of.normal) > 10.0 * eps)
+        points
+            .iter()
+            .all(|p| (*p - of.centroid).dot(of.normal) > 10.0 * eps)
     };
     if !in_front(&shooter.polygon, receiver) || !in_front(&receiver.polygon, shooter) {
         return false;
     }
     let mut rng = Rng::new(
-        hash_seed(&[ctx.params.seed, shooter_id.0 as u64, receiver_index as u64, 0x5a4f7]),
+        hash_seed(&[
+            ctx.params.seed,
+            shooter_id.0 as u64,
+            receiver_index as u64,
+            0x5a4f7,
+        ]),
         1,
     );
     let sampler = PolygonSampler::new(&shooter.polygon);
     let lift = |p: DVec3, n: DVec3| p + n * eps;
     let blocked = |from: DVec3, to: DVec3| {
         let (a, b) = (lift(from, receiver.normal), lift(to, shooter.normal));
-        ctx.bvh.any_hit_except(&Ray::new(a, b - a), 1e-9, 1.0 - 1e-9, ignore)
+        ctx.bvh
+            .any_hit_except(&Ray::new(a, b - a), 1e-9, 1.0 - 1e-9, ignore)
     };
     if blocked(receiver.centroid, shooter.centroid) {
         return false;

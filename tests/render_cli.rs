@@ -1,0 +1,186 @@
+//! `nusselt render` / `nusselt reference` through the command line: outputs, camera
+//! convention, logs and the JSON summary.
+
+use std::path::Path;
+use std::process::Command;
+
+use nusselt::render::Image;
+
+fn nusselt(args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_nusselt"))
+        .args(args)
+        .output()
+        .expect("run nusselt");
+    assert!(
+        out.status.success(),
+        "{args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).expect("utf-8")
+}
+
+fn mean_rgb(img: &Image, x0: u32, x1: u32) -> [f64; 3] {
+    let mut s = [0.0; 3];
+    let mut n = 0.0;
+    for y in img.height / 4..img.height * 3 / 4 {
+        for x in x0..x1 {
+            let p = img.get(x, y);
+            s[0] += p.x;
+            s[1] += p.y;
+            s[2] += p.z;
+            n += 1.0;
+        }
+    }
+    s.map(|v| v / n)
+}
+
+#[test]
+fn cornell_render_has_the_red_wall_on_the_left_and_writes_every_output() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let p = |name: &str| d.join(name).to_str().expect("utf-8").to_string();
+    let summary = nusselt(&[
+        "render",
+        "--builtin",
+        "cornell",
+        "--element-size",
+        "40",
+        "--patch-size",
+        "80",
+        "--width",
+        "48",
+        "--height",
+        "48",
+        "--spp",
+        "4",
+        "--out",
+        &p("c.pfm"),
+        "--log",
+        &p("conv.csv"),
+        "--elements-csv",
+        &p("el.csv"),
+        "--json",
+        "--quiet",
+    ]);
+    let json: serde_json::Value = serde_json::from_str(summary.trim()).expect("one JSON line");
+    for key in [
+        "elements",
+        "vertices",
+        "shots",
+        "solve_seconds",
+        "render_seconds",
+        "unshot_fraction",
+    ] {
+        assert!(json[key].is_number(), "summary lacks {key}: {json}");
+    }
+    assert!(json["error"].is_null());
+    assert!(json["unshot_fraction"].as_f64().expect("number") <= 1e-4);
+
+    let img = Image::load_pfm(Path::new(&p("c.pfm"))).expect("pfm");
+    assert_eq!((img.width, img.height), (48, 48));
+    let left = mean_rgb(&img, 2, 10);
+    let right = mean_rgb(&img, 38, 46);
+    assert!(
+        left[0] > 2.0 * left[1],
+        "left edge should be the red wall: {left:?}"
+    );
+    assert!(
+        right[1] > 2.0 * right[0],
+        "right edge should be the green wall: {right:?}"
+    );
+
+    let log = std::fs::read_to_string(p("conv.csv")).expect("log");
+    let mut lines = log.lines();
+    assert_eq!(lines.next(), Some("shot,seconds,unshot_fraction,ambient"));
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|v| v.parse().expect("number")).collect())
+        .collect();
+    assert_eq!(rows.len() as u64, json["shots"].as_u64().expect("shots"));
+    assert!(
+        rows.windows(2).all(|w| w[1][0] == w[0][0] + 1.0),
+        "one row per shot"
+    );
+    assert!(rows.last().expect("rows")[2] <= 1e-4);
+
+    let el = std::fs::read_to_string(p("el.csv")).expect("elements csv");
+    assert_eq!(el.lines().next(), Some("patch,area,cx,cy,cz,r,g,b"));
+    assert_eq!(
+        el.lines().count() as u64 - 1,
+        json["elements"].as_u64().expect("elements")
+    );
+    // Patch = index of the input face in file order: the light is the last of 19 faces.
+    let max_patch = el
+        .lines()
+        .skip(1)
+        .map(|l| {
+            l.split(',')
+                .next()
+                .expect("patch")
+                .parse::<usize>()
+                .expect("int")
+        })
+        .max();
+    assert_eq!(max_patch, Some(18));
+
+    // Other formats by extension.
+    for ext in ["png", "exr"] {
+        nusselt(&[
+            "render",
+            "--builtin",
+            "cornell",
+            "--element-size",
+            "60",
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--spp",
+            "1",
+            "--out",
+            &p(&format!("c.{ext}")),
+            "--quiet",
+        ]);
+        assert!(
+            std::fs::metadata(p(&format!("c.{ext}")))
+                .expect("written")
+                .len()
+                > 100
+        );
+    }
+}
+
+#[test]
+fn render_reports_its_error_against_a_reference() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let p = |name: &str| dir.path().join(name).to_str().expect("utf-8").to_string();
+    let common = ["--builtin", "cornell", "--width", "24", "--height", "24"];
+    nusselt(
+        &[
+            &["reference"][..],
+            &common[..],
+            &["--spp", "64", "--out", &p("ref.pfm"), "--quiet"],
+        ]
+        .concat(),
+    );
+    let out = nusselt(
+        &[
+            &["render"][..],
+            &common[..],
+            &[
+                "--element-size",
+                "40",
+                "--out",
+                &p("r.pfm"),
+                "--reference",
+                &p("ref.pfm"),
+                "--json",
+                "--quiet",
+            ],
+        ]
+        .concat(),
+    );
+    let json: serde_json::Value = serde_json::from_str(out.trim()).expect("json");
+    let error = json["error"].as_f64().expect("error is reported");
+    // A coarse solution against a noisy 64-spp reference: clearly close, clearly not equal.
+    assert!(error > 0.001 && error < 0.5, "error {error}");
+}
