@@ -257,3 +257,54 @@ fn an_edit_then_convergence_matches_a_fresh_solve() {
     let rel = (num / den).sqrt();
     assert!(rel < 5e-3, "edited vs fresh solve differ by {rel}");
 }
+
+#[test]
+fn two_sided_faces_emit_and_reflect_on_their_backs() {
+    // A light facing up above a floor facing up: only a two-sided light reaches the floor,
+    // and the floor's back side then stays dark unless it is two-sided too.
+    let obj = "mtllib m.mtl\nusemtl floor\nv 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nf 1 4 3 2\n\
+usemtl lamp\nv 0.4 1 0.4\nv 0.6 1 0.4\nv 0.6 1 0.6\nv 0.4 1 0.6\nf 5 8 7 6\n";
+    let mtl = "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl lamp\nKd 0 0 0\nKe 1 1 1\n";
+    let floor_light = |two_sided: bool| {
+        let opts = LoadOptions {
+            two_sided,
+            ..Default::default()
+        };
+        let scene = Scene::from_obj_str("t.obj", obj, &[("m.mtl", mtl)], &opts).expect("scene");
+        let mut s = ProgressiveSolver::new(
+            scene,
+            SolverConfig {
+                element_size: Some(0.25),
+                patch_size: Some(0.5),
+                ..Default::default()
+            },
+        )
+        .expect("solver");
+        s.run(
+            &StopCriteria::default(),
+            &AtomicBool::new(false),
+            &mut |_| {},
+        );
+        let mesh = s.mesh();
+        let floor_front: f64 = mesh
+            .elements
+            .iter()
+            .zip(s.radiosity())
+            .filter(|(e, _)| {
+                let p = mesh.patch(e.patch);
+                p.face == 0 && !p.back
+            })
+            .map(|(_, b)| b.x)
+            .sum();
+        floor_front
+    };
+    assert_eq!(
+        floor_light(false),
+        0.0,
+        "a one-sided light facing away lights nothing"
+    );
+    assert!(
+        floor_light(true) > 0.01,
+        "a two-sided light reaches the floor"
+    );
+}
