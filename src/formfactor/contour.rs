@@ -17,9 +17,14 @@ use crate::geometry::polygon;
 /// Form factor from a differential area at `p` (unit normal `n`) to `poly`, seen from the
 /// polygon's front (counter-clockwise side). Returns 0 when `p` is behind the polygon.
 pub fn point_to_polygon(p: DVec3, n: DVec3, poly: &[DVec3]) -> f64 {
-    let Some(pn) = polygon::normal(poly) else {
-        return 0.0;
-    };
+    match polygon::normal(poly) {
+        Some(pn) => point_to_polygon_with_normal(p, n, poly, pn),
+        None => 0.0,
+    }
+}
+
+/// [`point_to_polygon`] with the polygon's unit normal `pn` given (the solver's hot path).
+pub fn point_to_polygon_with_normal(p: DVec3, n: DVec3, poly: &[DVec3], pn: DVec3) -> f64 {
     // The source emits from its front only.
     if (p - poly[0]).dot(pn) <= 0.0 {
         return 0.0;
@@ -39,22 +44,29 @@ pub fn point_to_polygon(p: DVec3, n: DVec3, poly: &[DVec3]) -> f64 {
 
 /// The contour sum itself; `poly` must lie in the closed half-space above `p`.
 pub fn lambert(p: DVec3, n: DVec3, poly: &[DVec3]) -> f64 {
+    // Unit directions, each computed once; on the stack for up to 8 vertices.
     let k = poly.len();
+    if k <= 8 {
+        let mut buf = [DVec3::ZERO; 8];
+        contour_sum(p, n, poly, &mut buf[..k])
+    } else {
+        contour_sum(p, n, poly, &mut vec![DVec3::ZERO; k])
+    }
+}
+
+fn contour_sum(p: DVec3, n: DVec3, poly: &[DVec3], units: &mut [DVec3]) -> f64 {
+    let k = poly.len();
+    for (u, v) in units.iter_mut().zip(poly) {
+        *u = (*v - p).normalize_or_zero();
+    }
     let mut sum = 0.0;
     for i in 0..k {
-        let (Some(a), Some(b)) = (
-            (poly[i] - p).try_normalize(),
-            (poly[(i + 1) % k] - p).try_normalize(),
-        ) else {
-            continue;
-        };
+        let (a, b) = (units[i], units[(i + 1) % k]);
         let c = a.cross(b);
         let s = c.length();
-        if s <= 1e-300 {
-            continue;
+        if s > 1e-300 {
+            sum += s.atan2(a.dot(b)) * n.dot(c) / s;
         }
-        let gamma = s.atan2(a.dot(b));
-        sum += gamma * n.dot(c) / s;
     }
     // Counter-clockwise seen from the front, viewed from the front: the sum is negative.
     (-sum / (2.0 * std::f64::consts::PI)).max(0.0)

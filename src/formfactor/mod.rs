@@ -311,7 +311,12 @@ fn contour_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &Ato
             let j = first + i;
             let e = &mesh.elements[j];
             if all_visible {
-                *f = contour::point_to_polygon(e.centroid, e.normal, &patch.polygon) as f32;
+                *f = contour::point_to_polygon_with_normal(
+                    e.centroid,
+                    e.normal,
+                    &patch.polygon,
+                    patch.normal,
+                ) as f32;
                 continue;
             }
             let mut rng = Rng::new(hash_seed(&[seed, shooter.0 as u64, j as u64]), 0);

@@ -230,17 +230,17 @@ impl Mesh {
         Aabb::from_points(self.patches.iter().flat_map(|p| p.polygon.iter()))
     }
 
-    /// Triangles of the patch polygons (ids = input face index) for visibility queries.
-    pub fn patch_triangles(&self) -> Vec<TriangleInput> {
+    /// Triangles of the input faces (ids = face index) for visibility queries. Faces, not
+    /// patches: the hierarchy stays as small as the model (38 triangles for the Cornell box
+    /// instead of one or two per patch).
+    pub fn face_triangles(scene: &Scene) -> Vec<TriangleInput> {
         let mut out = Vec::new();
-        for p in &self.patches {
-            if p.back {
-                continue; // the front patch's triangles already block
-            }
-            for t in polygon::triangulate(&p.polygon) {
+        for (i, f) in scene.faces.iter().enumerate() {
+            let v = &f.vertices;
+            for t in polygon::triangulate(v) {
                 out.push(TriangleInput {
-                    vertices: [p.polygon[t[0]], p.polygon[t[1]], p.polygon[t[2]]],
-                    id: p.face as u32,
+                    vertices: [v[t[0]], v[t[1]], v[t[2]]],
+                    id: i as u32,
                     cull_back: false,
                 });
             }

@@ -125,7 +125,7 @@ impl ProgressiveSolver {
             .unwrap_or_else(|| mesh::default_patch_size(&scene))
             .max(size);
         let mesh = Mesh::build_with(&scene, size, patch)?;
-        let bvh = Bvh::build(&mesh.patch_triangles());
+        let bvh = Bvh::build(&Mesh::face_triangles(&scene));
         let epsilon = 1e-6 * mesh.bounds().diagonal().max(1e-12);
         let mut s = Self {
             scene,
@@ -194,7 +194,7 @@ impl ProgressiveSolver {
             .unwrap_or_else(|| mesh::default_patch_size(&self.scene))
             .max(element_size);
         let mesh = Mesh::build_with(&self.scene, element_size, patch)?;
-        self.bvh = Bvh::build(&mesh.patch_triangles());
+        self.bvh = Bvh::build(&Mesh::face_triangles(&self.scene));
         self.mesh = mesh;
         self.config.element_size = Some(element_size);
         self.rows.clear();
