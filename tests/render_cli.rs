@@ -183,4 +183,20 @@ fn render_reports_its_error_against_a_reference() {
     let error = json["error"].as_f64().expect("error is reported");
     // A coarse solution against a noisy 64-spp reference: clearly close, clearly not equal.
     assert!(error > 0.001 && error < 0.5, "error {error}");
+    // `compare` uses the same mask: it reproduces the render's figure, and 0 for itself.
+    let compare = |image: &str| {
+        let out = nusselt(&[
+            "compare",
+            "--builtin",
+            "cornell",
+            "--image",
+            image,
+            "--reference",
+            &p("ref.pfm"),
+        ]);
+        let v: serde_json::Value = serde_json::from_str(out.trim()).expect("json");
+        v["error"].as_f64().expect("error")
+    };
+    assert!((compare(&p("r.pfm")) - error).abs() < 1e-6 * error);
+    assert_eq!(compare(&p("ref.pfm")), 0.0);
 }

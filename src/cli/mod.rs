@@ -32,6 +32,8 @@ pub enum Command {
     Reference(render::ReferenceArgs),
     /// Evaluate form-factor cases from a JSON file; one JSON line per case.
     Formfactor(formfactor::FormfactorArgs),
+    /// Image error of any PFM image against a reference, with the render's pixel mask.
+    Compare(render::CompareArgs),
 }
 
 /// Which scene to load: an OBJ file or a built-in.
@@ -116,6 +118,7 @@ pub fn main() -> Result<()> {
         Some(Command::Render(args)) => render::run_render(&args),
         Some(Command::Reference(args)) => render::run_reference(&args),
         Some(Command::Formfactor(args)) => formfactor::run(&args),
+        Some(Command::Compare(args)) => render::run_compare(&args),
         None => {
             // Until the viewer lands: render the built-in Cornell box.
             let cli = Cli::parse_from([

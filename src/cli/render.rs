@@ -286,3 +286,45 @@ pub fn run_reference(args: &ReferenceArgs) -> Result<()> {
     }
     Ok(())
 }
+
+#[derive(Args, Debug)]
+pub struct CompareArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Camera (as for render); the image size comes from the images.
+    #[arg(long, allow_hyphen_values = true)]
+    pub camera: Option<String>,
+    /// The image to judge (PFM).
+    #[arg(long)]
+    pub image: PathBuf,
+    /// The reference (PFM).
+    #[arg(long)]
+    pub reference: PathBuf,
+}
+
+/// Prints `{"error": …, "pixels": …}`: the relative RMS over the pixels that see neither a
+/// light nor the background (the mask `render --reference` uses).
+pub fn run_compare(args: &CompareArgs) -> Result<()> {
+    let scene = args.scene.load()?;
+    let image = Image::load_pfm(&args.image)?;
+    let reference = Image::load_pfm(&args.reference)?;
+    let camera = match &args.camera {
+        Some(text) => crate::scene::Camera::parse(text).context("--camera")?,
+        None => scene.default_camera(),
+    };
+    let size = crate::mesh::default_patch_size(&scene);
+    let mesh = crate::mesh::Mesh::build_with(&scene, size, size)?;
+    let bvh = render::display_bvh(&scene, &mesh);
+    let zeros = vec![crate::scene::Rgb::ZERO; mesh.vertices.len()];
+    let view = SolutionView {
+        scene: &scene,
+        mesh: &mesh,
+        vertex_radiance: &zeros,
+        bvh: &bvh,
+    };
+    let mask = render::error_mask(&view, &camera, reference.width, reference.height);
+    let error = render::relative_rms(&image, &reference, &mask)?;
+    let pixels = mask.iter().filter(|m| **m).count();
+    println!("{}", serde_json::json!({"error": error, "pixels": pixels}));
+    Ok(())
+}
