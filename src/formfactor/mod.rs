@@ -19,6 +19,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::geometry::sampling::{hash_seed, triangle_point};
+use crate::geometry::shaft::Shaft;
 use crate::geometry::{Bvh, Ray, Rng, polygon};
 use crate::mesh::{Mesh, PatchId};
 use crate::scene::Scene;
@@ -143,7 +144,28 @@ pub fn visibility_fraction(
     ignore: [u32; 2],
     rng: &mut Rng,
 ) -> f64 {
-    let origin = x + nx * epsilon;
+    sampled_visibility(
+        |ray| bvh.any_hit_except(ray, 1e-9, 1.0 - 1e-9, ignore),
+        x + nx * epsilon,
+        target,
+        m,
+        probe,
+        epsilon,
+        rng,
+    )
+}
+
+/// [`visibility_fraction`] with the blocking test given: rays from `origin` to stratified
+/// points lifted `epsilon` off the target.
+fn sampled_visibility(
+    blocked: impl Fn(&Ray) -> bool,
+    origin: DVec3,
+    target: &PolygonSampler,
+    m: u32,
+    probe: bool,
+    epsilon: f64,
+    rng: &mut Rng,
+) -> f64 {
     let ray_to = |u1: f64, u2: f64| {
         let y = target.point(u1, u2) + target.normal() * epsilon;
         Ray::new(origin, y - origin)
@@ -154,7 +176,7 @@ pub fn visibility_fraction(
         for k in 0..4u32 {
             let u1 = ((k % 2) as f64 + rng.next_f64()) / 2.0;
             let u2 = ((k / 2) as f64 + rng.next_f64()) / 2.0;
-            seen += u32::from(!bvh.any_hit_except(&ray_to(u1, u2), 1e-9, 1.0 - 1e-9, ignore));
+            seen += u32::from(!blocked(&ray_to(u1, u2)));
         }
         if seen == 0 || seen == 4 {
             return seen as f64 / 4.0;
@@ -165,7 +187,7 @@ pub fn visibility_fraction(
         for b in 0..m {
             let u1 = (a as f64 + rng.next_f64()) / m as f64;
             let u2 = (b as f64 + rng.next_f64()) / m as f64;
-            if !bvh.any_hit_except(&ray_to(u1, u2), 1e-9, 1.0 - 1e-9, ignore) {
+            if !blocked(&ray_to(u1, u2)) {
                 visible += 1;
             }
         }
@@ -175,61 +197,6 @@ pub fn visibility_fraction(
 
 fn side(rays: u32) -> u32 {
     ((rays.max(1) as f64).sqrt().round() as u32).max(1)
-}
-
-/// Whether a whole receiving patch sees the whole shooting patch: both lie strictly in
-/// front of each other and 4 × 4 rays between points near the receiver's corners and
-/// stratified points on the shooter, plus centre to centre, all arrive. Then every element
-/// of the receiver skips its own shadow rays (a blocker that slips between these 17 rays is
-/// missed, as with the per-element probe).
-fn patch_pair_unblocked(
-    ctx: &RowContext,
-    receiver: &crate::mesh::Patch,
-    shooter: &crate::mesh::Patch,
-    shooter_id: PatchId,
-    receiver_index: usize,
-    ignore: [u32; 2],
-) -> bool {
-    let eps = ctx.epsilon;
-    let in_front = |points: &[DVec3], of: &crate::mesh::Patch| {
-        points
-            .iter()
-            .all(|p| (*p - of.centroid).dot(of.normal) > 10.0 * eps)
-    };
-    if !in_front(&shooter.polygon, receiver) || !in_front(&receiver.polygon, shooter) {
-        return false;
-    }
-    let mut rng = Rng::new(
-        hash_seed(&[
-            ctx.params.seed,
-            shooter_id.0 as u64,
-            receiver_index as u64,
-            0x5a4f7,
-        ]),
-        1,
-    );
-    let sampler = PolygonSampler::new(&shooter.polygon);
-    let lift = |p: DVec3, n: DVec3| p + n * eps;
-    let blocked = |from: DVec3, to: DVec3| {
-        let (a, b) = (lift(from, receiver.normal), lift(to, shooter.normal));
-        ctx.bvh
-            .any_hit_except(&Ray::new(a, b - a), 1e-9, 1.0 - 1e-9, ignore)
-    };
-    if blocked(receiver.centroid, shooter.centroid) {
-        return false;
-    }
-    for corner in &receiver.polygon {
-        // A little inside the corner, off the neighbouring faces.
-        let from = *corner + (receiver.centroid - *corner) * 0.01;
-        for k in 0..4u32 {
-            let u1 = ((k % 2) as f64 + rng.next_f64()) / 2.0;
-            let u2 = ((k / 2) as f64 + rng.next_f64()) / 2.0;
-            if blocked(from, sampler.point(u1, u2)) {
-                return false;
-            }
-        }
-    }
-    true
 }
 
 /// Lambert's point-to-polygon form factor times the visible fraction of stratified shadow
@@ -294,46 +261,134 @@ fn contour_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &Ato
         slices.push((k, head));
         rest = tail;
     }
-    slices.into_par_iter().for_each(|(k, slice)| {
-        if cancel.load(Ordering::Relaxed) {
-            return;
-        }
-        let receiver = &mesh.patches[k];
-        let first = receiver.elements.start as usize;
-        if k == shooter.0 as usize {
-            slice.fill(0.0);
-            return;
-        }
-        // BVH ids are input faces; a planar face cannot block rays between its points.
-        let ignore = [receiver.face as u32, patch.face as u32];
-        let all_visible = probe && patch_pair_unblocked(ctx, receiver, patch, shooter, k, ignore);
-        for (i, f) in slice.iter_mut().enumerate() {
-            let j = first + i;
-            let e = &mesh.elements[j];
-            if all_visible {
-                *f = contour::point_to_polygon_with_normal(
+    slices
+        .into_par_iter()
+        .for_each_init(Vec::new, |candidates, (k, slice)| {
+            if cancel.load(Ordering::Relaxed) {
+                return;
+            }
+            let receiver = &mesh.patches[k];
+            let first = receiver.elements.start as usize;
+            // Behind the shooter, or the shooter behind it (coplanar patches included).
+            let behind = |poly: &[DVec3], of: &crate::mesh::Patch| {
+                poly.iter()
+                    .all(|v| (*v - of.centroid).dot(of.normal) <= 0.0)
+            };
+            if k == shooter.0 as usize
+                || behind(&receiver.polygon, patch)
+                || behind(&patch.polygon, receiver)
+            {
+                slice.fill(0.0);
+                return;
+            }
+            // BVH ids are input faces; a planar face cannot block rays between its points.
+            let ignore = [receiver.face as u32, patch.face as u32];
+            // Triangles in the pair's bounding box first; the hull only when there are some.
+            let bbox = Shaft::bounding_box(&receiver.polygon, &patch.polygon, ctx.epsilon);
+            let culled = ctx
+                .bvh
+                .collect_in_shaft(&bbox, ignore, MAX_SHAFT_CANDIDATES, candidates);
+            if culled && !candidates.is_empty() {
+                let hull = Shaft::between(&receiver.polygon, &patch.polygon, ctx.epsilon);
+                candidates.retain(|&t| !hull.excludes_triangle(ctx.bvh.stored_triangle(t)));
+            }
+            for (i, f) in slice.iter_mut().enumerate() {
+                let j = first + i;
+                let e = &mesh.elements[j];
+                let analytic = contour::point_to_polygon_with_normal(
                     e.centroid,
                     e.normal,
                     &patch.polygon,
                     patch.normal,
-                ) as f32;
-                continue;
+                );
+                if analytic <= 0.0 || (culled && candidates.is_empty()) {
+                    *f = analytic.max(0.0) as f32;
+                    continue;
+                }
+                let mut rng = Rng::new(hash_seed(&[seed, shooter.0 as u64, j as u64]), 0);
+                let v = if culled {
+                    element_visibility(
+                        ctx, e.centroid, e.normal, patch, &sampler, m, probe, candidates, &mut rng,
+                    )
+                } else {
+                    let above = patch
+                        .polygon
+                        .iter()
+                        .all(|v| (*v - e.centroid).dot(e.normal) >= 0.0);
+                    let part;
+                    let target = if above {
+                        &sampler
+                    } else {
+                        part = PolygonSampler::new(&polygon::clip_to_halfspace(
+                            &patch.polygon,
+                            e.centroid,
+                            e.normal,
+                        ));
+                        &part
+                    };
+                    visibility_fraction(
+                        ctx.bvh,
+                        e.centroid,
+                        e.normal,
+                        target,
+                        m,
+                        probe,
+                        ctx.epsilon,
+                        ignore,
+                        &mut rng,
+                    )
+                };
+                *f = (analytic * v) as f32;
             }
-            let mut rng = Rng::new(hash_seed(&[seed, shooter.0 as u64, j as u64]), 0);
-            let v = occluded_point_to_polygon(
-                ctx.bvh,
-                e.centroid,
-                e.normal,
-                &patch.polygon,
-                &sampler,
-                m,
-                probe,
-                ctx.epsilon,
-                ignore,
-                &mut rng,
-            );
-            *f = v as f32;
-        }
-    });
+        });
     !cancel.load(Ordering::Relaxed)
+}
+
+/// More candidate blockers than this in a patch pair's shaft: use the BVH instead.
+const MAX_SHAFT_CANDIDATES: usize = 48;
+
+/// Visible fraction of the shooter from a receiving point, given the only triangles that
+/// can block (`candidates`, from the receiving patch's shaft): if none of them cuts the
+/// point's own pyramid to the (clipped) shooter the answer is exactly 1 without a ray;
+/// otherwise stratified rays are tested against the candidates alone.
+#[allow(clippy::too_many_arguments)]
+fn element_visibility(
+    ctx: &RowContext,
+    x: DVec3,
+    nx: DVec3,
+    patch: &crate::mesh::Patch,
+    sampler: &PolygonSampler,
+    m: u32,
+    probe: bool,
+    candidates: &[u32],
+    rng: &mut Rng,
+) -> f64 {
+    let above = patch.polygon.iter().all(|v| (*v - x).dot(nx) >= 0.0);
+    let clipped;
+    let (poly, part) = if above {
+        (&patch.polygon[..], None)
+    } else {
+        clipped = polygon::clip_to_halfspace(&patch.polygon, x, nx);
+        (&clipped[..], Some(PolygonSampler::new(&clipped)))
+    };
+    let origin = x + nx * ctx.epsilon;
+    let pyramid = Shaft::pyramid(origin, poly, ctx.epsilon);
+    let cutting: Vec<u32> = candidates
+        .iter()
+        .copied()
+        .filter(|&k| !pyramid.excludes_triangle(ctx.bvh.stored_triangle(k)))
+        .collect();
+    if cutting.is_empty() {
+        return 1.0;
+    }
+    let target = part.as_ref().unwrap_or(sampler);
+    sampled_visibility(
+        |ray| ctx.bvh.any_hit_among(&cutting, ray, 1e-9, 1.0 - 1e-9),
+        origin,
+        target,
+        m,
+        probe,
+        ctx.epsilon,
+        rng,
+    )
 }

@@ -5,7 +5,7 @@
 //! are stored as `(v0, e1, e2)` in `f32` for the Möller–Trumbore test. Each triangle carries a
 //! caller-chosen `u32` id (a patch or element index) and whether back faces are culled.
 
-use super::{Aabb, Ray};
+use super::{Aabb, Ray, shaft::Shaft};
 use glam::{DVec3, Vec3};
 
 const BINS: usize = 12;
@@ -226,6 +226,82 @@ impl Bvh {
             sp -= 1;
             node = stack[sp];
         }
+    }
+    /// Stored indices of the triangles that may cut `shaft` (see [`Shaft`]), skipping ids in
+    /// `ignore`. Returns `false` (with `out` incomplete) once more than `limit` were found.
+    pub fn collect_in_shaft(
+        &self,
+        shaft: &Shaft,
+        ignore: [u32; 2],
+        limit: usize,
+        out: &mut Vec<u32>,
+    ) -> bool {
+        out.clear();
+        if self.nodes.is_empty() {
+            return true;
+        }
+        let mut stack = [0u32; 64];
+        let mut sp = 0usize;
+        let mut node = 0u32;
+        loop {
+            let nd = &self.nodes[node as usize];
+            if !shaft.excludes_box(nd.min.as_dvec3(), nd.max.as_dvec3()) {
+                if nd.count > 0 {
+                    let first = nd.first_or_right as usize;
+                    for (k, tri) in self.tris[first..first + nd.count as usize]
+                        .iter()
+                        .enumerate()
+                    {
+                        if tri.id == ignore[0] || tri.id == ignore[1] {
+                            continue;
+                        }
+                        let v0 = tri.v0.as_dvec3();
+                        let v = [v0, v0 + tri.e1.as_dvec3(), v0 + tri.e2.as_dvec3()];
+                        if !shaft.excludes_triangle(v) {
+                            if out.len() >= limit {
+                                return false;
+                            }
+                            out.push((first + k) as u32);
+                        }
+                    }
+                } else {
+                    if sp < stack.len() {
+                        stack[sp] = nd.first_or_right;
+                        sp += 1;
+                    } else {
+                        // Too deep to remember the other side: give up (caller uses the BVH).
+                        return false;
+                    }
+                    node += 1;
+                    continue;
+                }
+            }
+            if sp == 0 {
+                return true;
+            }
+            sp -= 1;
+            node = stack[sp];
+        }
+    }
+
+    /// Vertices of the stored triangle `k` (as stored, in `f32` precision).
+    pub fn stored_triangle(&self, k: u32) -> [DVec3; 3] {
+        let t = &self.tris[k as usize];
+        let v0 = t.v0.as_dvec3();
+        [v0, v0 + t.e1.as_dvec3(), v0 + t.e2.as_dvec3()]
+    }
+
+    /// Any hit among the stored triangles `candidates` (from [`Bvh::collect_in_shaft`]),
+    /// both faces counted, with `t` in `(t_min, t_max)`.
+    pub fn any_hit_among(&self, candidates: &[u32], ray: &Ray, t_min: f64, t_max: f64) -> bool {
+        let o = ray.origin.as_vec3();
+        let d = ray.dir.as_vec3();
+        let (t_min, t_max) = (t_min as f32, t_max as f32);
+        candidates.iter().any(|&k| {
+            let mut t = self.tris[k as usize];
+            t.cull_back = false;
+            intersect(&t, o, d, t_min, t_max).is_some()
+        })
     }
 }
 

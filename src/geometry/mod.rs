@@ -6,6 +6,7 @@
 pub mod bvh;
 pub mod polygon;
 pub mod sampling;
+pub mod shaft;
 
 pub use bvh::{Bvh, Hit};
 pub use sampling::Rng;
