@@ -156,12 +156,10 @@ impl Shaft {
     #[inline]
     pub fn excludes_triangle(&self, v: [DVec3; 3]) -> bool {
         let t = self.tolerance;
-        for axis in 0..3 {
-            let lo = v[0][axis].min(v[1][axis]).min(v[2][axis]);
-            let hi = v[0][axis].max(v[1][axis]).max(v[2][axis]);
-            if lo >= self.bounds.max[axis] - t || hi <= self.bounds.min[axis] + t {
-                return true;
-            }
+        let lo = v[0].min(v[1]).min(v[2]);
+        let hi = v[0].max(v[1]).max(v[2]);
+        if lo.cmpge(self.bounds.max - t).any() || hi.cmple(self.bounds.min + t).any() {
+            return true;
         }
         self.planes()
             .iter()
