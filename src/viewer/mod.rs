@@ -1,0 +1,94 @@
+//! The live viewer: open a model and watch it brighten from dark as the solver shoots.
+//!
+//! Layout (after rerun's viewer: UI split by concern, commands handled in one place):
+//! - [`solver_thread`]: a named thread owns the [`crate::solver::ProgressiveSolver`]; the
+//!   UI sends [`solver_thread::Command`]s through a bounded channel and takes a latest-wins
+//!   [`snapshot::Snapshot`]; the thread wakes the UI when it publishes.
+//! - [`render`]: wgpu pipelines in egui-wgpu's callback resources (egui's `custom3d_wgpu`
+//!   pattern); per-vertex radiance, exposure and linear→sRGB in `shaders/viewport.wgsl`.
+//! - [`app`]: the eframe app: side panel ([`panels`]), viewport with orbit camera
+//!   ([`camera`]), and every user action funnelled through `App::handle`.
+//! - [`automation`]: `--screenshot`, `--frame-log`, `--edit`: reproducible runs for
+//!   screenshots, tests and the latency figures in docs/VIEWER.md.
+//! - [`export`]: PLY, MTL and PNG files, written atomically.
+//!
+//! Nothing here is used by the core; the core never imports egui, eframe or wgpu.
+
+pub mod app;
+pub mod automation;
+pub mod camera;
+pub mod export;
+mod panels;
+pub mod render;
+pub mod snapshot;
+pub mod solver_thread;
+
+use crate::formfactor::FormFactorMethod;
+use crate::scene::Scene;
+
+pub use automation::{Automation, EditSpec, EditTarget, ScreenshotPlan, ScreenshotWhen};
+
+/// How the viewer starts.
+#[derive(Debug)]
+pub struct ViewerOptions {
+    pub scene: Scene,
+    pub element_size: Option<f64>,
+    pub method: FormFactorMethod,
+    /// Window size in points.
+    pub window: [f32; 2],
+    pub wireframe: bool,
+    pub patch_outlines: bool,
+    pub ambient: bool,
+    /// Exposure in stops.
+    pub exposure_stops: f32,
+    pub highlight_shooter: bool,
+    /// Start paused.
+    pub paused: bool,
+    pub automation: Automation,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ViewerError {
+    #[error("the viewer could not start: {0}")]
+    Start(String),
+    #[error("{0}")]
+    Run(String),
+}
+
+/// Opens the window and runs until it closes.
+pub fn run(options: ViewerOptions) -> Result<(), ViewerError> {
+    let started = std::time::Instant::now();
+    let screenshot_mode = options.automation.screenshot.is_some();
+    let viewport = eframe::egui::ViewportBuilder::default()
+        .with_title(format!("Nusselt — {}", options.scene.name))
+        .with_app_id("nusselt")
+        .with_inner_size(options.window)
+        .with_drag_and_drop(true);
+    let native = eframe::NativeOptions {
+        viewport,
+        depth_buffer: render::DEPTH_BITS,
+        persist_window: !screenshot_mode,
+        renderer: eframe::Renderer::Wgpu,
+        ..Default::default()
+    };
+    let outcome = std::sync::Arc::new(std::sync::Mutex::new(None::<String>));
+    let outcome_app = outcome.clone();
+    eframe::run_native(
+        "nusselt",
+        native,
+        Box::new(move |cc| {
+            let app = app::ViewerApp::new(cc, options, started, outcome_app)
+                .map_err(|e| -> Box<dyn std::error::Error + Send + Sync> { e.into() })?;
+            Ok(Box::new(app))
+        }),
+    )
+    .map_err(|e| ViewerError::Start(e.to_string()))?;
+    let failure = outcome
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .take();
+    match failure {
+        Some(message) => Err(ViewerError::Run(message)),
+        None => Ok(()),
+    }
+}
