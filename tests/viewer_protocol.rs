@@ -266,3 +266,149 @@ fn an_edit_while_running_converges_to_a_fresh_solve() {
     );
     assert!(rel < 5e-3, "edited vs fresh solve differ by {rel}");
 }
+
+fn first_snapshot(
+    h: &SolverHandle,
+    deadline: Instant,
+    want: impl Fn(&Snapshot) -> bool,
+) -> Arc<Snapshot> {
+    loop {
+        assert!(Instant::now() < deadline, "no matching snapshot in time");
+        if let Some(s) = h.take_snapshot()
+            && want(&s)
+        {
+            return s;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+#[test]
+fn a_bad_file_reports_file_and_line_and_keeps_the_scene() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let bad = dir.path().join("broken.obj");
+    std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n").expect("write");
+    let (mut h, _) = spawn(
+        cornell(),
+        ThreadConfig {
+            solver: coarse_config(),
+            play: false,
+            ..Default::default()
+        },
+    );
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let before = first_snapshot(&h, deadline, |_| true);
+    send(&h, Command::LoadPath(bad.clone()), deadline);
+    send(&h, Command::Step, deadline);
+    let after = first_snapshot(&h, deadline, |s| s.stats.shots == 1);
+    let mut errors = Vec::new();
+    while let Some(e) = h.try_event() {
+        errors.push(e);
+    }
+    let want = format!("{}:4", bad.display());
+    assert!(
+        errors
+            .iter()
+            .any(|e| matches!(e, Event::Error(m) if m.contains(&want))),
+        "no error naming {want}: {errors:?}"
+    );
+    assert_eq!(after.scene_name, "cornell");
+    assert_eq!(after.scene_rev, before.scene_rev);
+    assert_eq!(after.geometry.id, before.geometry.id);
+    assert!(h.shutdown(Duration::from_secs(30)));
+}
+
+#[test]
+fn ply_export_holds_the_snapshot() {
+    let (mut h, _) = spawn(
+        cornell(),
+        ThreadConfig {
+            solver: coarse_config(),
+            max_shots: Some(10),
+            ..Default::default()
+        },
+    );
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let s = first_snapshot(&h, deadline, |s| s.stats.limit_reached);
+    h.shutdown(Duration::from_secs(30));
+    let bytes = nusselt::viewer::export::ply_bytes(&s, true, 2.0);
+    let end = b"end_header\n";
+    let at = bytes
+        .windows(end.len())
+        .position(|w| w == end)
+        .expect("header end")
+        + end.len();
+    let header = std::str::from_utf8(&bytes[..at]).expect("ascii header");
+    let count = |what: &str| -> usize {
+        header
+            .lines()
+            .find_map(|l| l.strip_prefix(&format!("element {what} ")))
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("no element {what}"))
+    };
+    let (nv, nf) = (count("vertex"), count("face"));
+    assert_eq!(nf * 3, s.geometry.corner_vertex.len());
+    assert_eq!(at + nv * 27 + nf * 13, bytes.len());
+    // Every corner's radiance (with ambient) is in its vertex record, and 8-bit sRGB matches.
+    let f = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
+    for (k, &v) in s.geometry.corner_vertex.iter().enumerate().step_by(97) {
+        let o = at + v as usize * 27;
+        for c in 0..3 {
+            let want = s.radiance[k][c] + s.reflectance[k][c] * s.ambient[c];
+            assert_eq!(f(o + 12 + 4 * c), want);
+            assert_eq!(bytes[o + 24 + c], nusselt::viewer::export::srgb8(want, 2.0));
+            assert_eq!(f(o + 4 * c), s.geometry.positions[k][c]);
+        }
+    }
+    // Faces index valid vertices.
+    let faces = &bytes[at + nv * 27..];
+    for rec in faces.chunks_exact(13) {
+        assert_eq!(rec[0], 3);
+        for i in 0..3 {
+            let v = u32::from_le_bytes(rec[1 + 4 * i..5 + 4 * i].try_into().expect("4"));
+            assert!((v as usize) < nv);
+        }
+    }
+}
+
+#[test]
+fn it_starts_dark_brightens_and_the_ambient_term_decays() {
+    let (mut h, _) = spawn(
+        cornell(),
+        ThreadConfig {
+            solver: coarse_config(),
+            play: false,
+            stop_unshot: 1e-3,
+            ..Default::default()
+        },
+    );
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let dark = first_snapshot(&h, deadline, |_| true);
+    assert_eq!(dark.stats.shots, 0);
+    // Only the light's corners are lit before the first shot.
+    let lit = dark
+        .radiance
+        .iter()
+        .filter(|c| c.iter().any(|&x| x > 0.0))
+        .count();
+    assert!(
+        lit > 0 && lit < dark.radiance.len() / 10,
+        "{lit} lit corners at shot 0"
+    );
+    send(&h, Command::Play, deadline);
+    let done = first_snapshot(&h, deadline, |s| s.stats.converged);
+    h.shutdown(Duration::from_secs(30));
+    let energy = |s: &Snapshot| -> f64 { s.radiance.iter().flatten().map(|&x| f64::from(x)).sum() };
+    assert!(energy(&done) > 1.5 * energy(&dark));
+    let (first, last) = (
+        done.history.first().expect("h"),
+        done.history.last().expect("h"),
+    );
+    assert!(
+        last.ambient < 0.05 * first.ambient,
+        "ambient {} -> {}",
+        first.ambient,
+        last.ambient
+    );
+    assert!(last.unshot_fraction <= 1e-3 && first.unshot_fraction > last.unshot_fraction);
+}
