@@ -8,7 +8,9 @@ use clap::Args;
 
 use super::SceneArgs;
 use crate::formfactor::FormFactorMethod;
-use crate::viewer::{Automation, EditSpec, ScreenshotPlan, ScreenshotWhen, ViewerOptions};
+use crate::viewer::{
+    Automation, EditSpec, ScreenshotPlan, ScreenshotWhen, UiOptions, ViewerOptions,
+};
 
 #[derive(Args, Debug, Clone)]
 pub struct ViewCmdArgs {
@@ -162,16 +164,18 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
     };
     crate::viewer::run(ViewerOptions {
         scene,
-        element_size: args.element_size,
-        method,
-        window,
-        wireframe: args.wireframe,
-        patch_outlines: args.patch_outlines,
-        ambient: !args.no_ambient,
-        exposure_stops: args.exposure,
-        highlight_shooter: !args.no_highlight,
-        paused: args.paused,
-        automation,
+        ui: UiOptions {
+            element_size: args.element_size,
+            method,
+            window,
+            wireframe: args.wireframe,
+            patch_outlines: args.patch_outlines,
+            ambient: !args.no_ambient,
+            exposure_stops: args.exposure,
+            highlight_shooter: !args.no_highlight,
+            paused: args.paused,
+            automation,
+        },
     })?;
     Ok(())
 }

@@ -12,7 +12,7 @@ use eframe::egui_wgpu;
 use crate::scene::{LoadOptions, Scene};
 use crate::solver::SolverConfig;
 
-use super::ViewerOptions;
+use super::UiOptions;
 use super::automation::{Automation, EditTarget, FrameLog, FrameRow, ScreenshotWhen, ShotState};
 use super::camera::OrbitCamera;
 use super::export;
@@ -64,10 +64,29 @@ pub struct ViewerApp {
     persist: bool,
 }
 
+/// The solver thread's settings for these options.
+pub fn thread_config(options: &UiOptions) -> ThreadConfig {
+    let max_shots = match options.automation.screenshot.as_ref().map(|p| p.when) {
+        Some(ScreenshotWhen::Shots(n)) => Some(n),
+        _ => None,
+    };
+    ThreadConfig {
+        solver: SolverConfig {
+            element_size: options.element_size,
+            method: options.method,
+            ..Default::default()
+        },
+        play: !options.paused,
+        max_shots,
+        ..Default::default()
+    }
+}
+
 impl ViewerApp {
     pub fn new(
         cc: &eframe::CreationContext<'_>,
-        options: ViewerOptions,
+        options: UiOptions,
+        solver: SolverHandle,
         started: Instant,
         outcome: Arc<Mutex<Option<String>>>,
     ) -> Result<Self, String> {
@@ -76,24 +95,6 @@ impl ViewerApp {
             .as_ref()
             .ok_or("no wgpu render state (the viewer needs the wgpu backend)")?;
         ViewportResources::install(render_state);
-        let ctx = cc.egui_ctx.clone();
-        let waker = Box::new(move || ctx.request_repaint());
-        let max_shots = match options.automation.screenshot.as_ref().map(|p| p.when) {
-            Some(ScreenshotWhen::Shots(n)) => Some(n),
-            _ => None,
-        };
-        let config = ThreadConfig {
-            solver: SolverConfig {
-                element_size: options.element_size,
-                method: options.method,
-                ..Default::default()
-            },
-            play: !options.paused,
-            max_shots,
-            ..Default::default()
-        };
-        let solver = SolverHandle::spawn(options.scene, config, waker)
-            .map_err(|e| format!("cannot start the solver thread: {e}"))?;
         let persist = options.automation.screenshot.is_none();
         let recent = if persist {
             cc.storage

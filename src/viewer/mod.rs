@@ -23,6 +23,8 @@ pub mod render;
 pub mod snapshot;
 pub mod solver_thread;
 
+use std::sync::{Arc, OnceLock};
+
 use crate::formfactor::FormFactorMethod;
 use crate::scene::Scene;
 
@@ -32,6 +34,12 @@ pub use automation::{Automation, EditSpec, EditTarget, ScreenshotPlan, Screensho
 #[derive(Debug)]
 pub struct ViewerOptions {
     pub scene: Scene,
+    pub ui: UiOptions,
+}
+
+/// Everything but the scene.
+#[derive(Clone, Debug)]
+pub struct UiOptions {
     pub element_size: Option<f64>,
     pub method: FormFactorMethod,
     /// Window size in points.
@@ -58,11 +66,25 @@ pub enum ViewerError {
 /// Opens the window and runs until it closes.
 pub fn run(options: ViewerOptions) -> Result<(), ViewerError> {
     let started = std::time::Instant::now();
-    let screenshot_mode = options.automation.screenshot.is_some();
+    let ViewerOptions { scene, ui } = options;
+    let screenshot_mode = ui.automation.screenshot.is_some();
+    let title = format!("Nusselt — {}", scene.name);
+    // The solver starts before the window: meshing overlaps window and GPU set-up, and the
+    // first snapshot is waiting when the first frame is drawn. The UI's repaint handle is
+    // given to the waker once the window exists.
+    let ctx_slot: Arc<OnceLock<eframe::egui::Context>> = Arc::new(OnceLock::new());
+    let waker_slot = ctx_slot.clone();
+    let waker = Box::new(move || {
+        if let Some(ctx) = waker_slot.get() {
+            ctx.request_repaint();
+        }
+    });
+    let solver = solver_thread::SolverHandle::spawn(scene, app::thread_config(&ui), waker)
+        .map_err(|e| ViewerError::Start(format!("cannot start the solver thread: {e}")))?;
     let viewport = eframe::egui::ViewportBuilder::default()
-        .with_title(format!("Nusselt — {}", options.scene.name))
+        .with_title(title)
         .with_app_id("nusselt")
-        .with_inner_size(options.window)
+        .with_inner_size(ui.window)
         .with_drag_and_drop(true);
     let native = eframe::NativeOptions {
         viewport,
@@ -77,7 +99,10 @@ pub fn run(options: ViewerOptions) -> Result<(), ViewerError> {
         "nusselt",
         native,
         Box::new(move |cc| {
-            let app = app::ViewerApp::new(cc, options, started, outcome_app)
+            let _ = ctx_slot.set(cc.egui_ctx.clone());
+            // Whatever the solver published before the window existed.
+            cc.egui_ctx.request_repaint();
+            let app = app::ViewerApp::new(cc, ui, solver, started, outcome_app)
                 .map_err(|e| -> Box<dyn std::error::Error + Send + Sync> { e.into() })?;
             Ok(Box::new(app))
         }),
