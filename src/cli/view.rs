@@ -64,6 +64,9 @@ pub struct ViewCmdArgs {
     /// Start paused.
     #[arg(long)]
     pub paused: bool,
+    /// Present frames without waiting for vertical sync.
+    #[arg(long)]
+    pub no_vsync: bool,
     /// Material edit, as in the edit panel: TARGET:kd=r,g,b[:ke=r,g,b], TARGET a material
     /// name or #PATCH (which is also selected). Repeatable.
     #[arg(long)]
@@ -174,6 +177,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
             exposure_stops: args.exposure,
             highlight_shooter: !args.no_highlight,
             paused: args.paused,
+            no_vsync: args.no_vsync,
             automation,
         },
     })?;

@@ -233,12 +233,16 @@ impl ViewerApp {
                 .get(e.material as usize)
                 .is_some_and(|m| m.reflectance.to_array() == e.kd && m.emission.to_array() == e.ke);
             if drawn {
-                latencies.push((now - e.sent).as_secs_f64() * 1e3);
+                latencies.push((
+                    (now - e.sent).as_secs_f64() * 1e3,
+                    s.published.saturating_duration_since(e.sent).as_secs_f64() * 1e3,
+                ));
             }
             !drawn
         });
-        for l in latencies {
-            self.frame_log.edit_latency_ms.push(l);
+        for (drawn, published) in latencies {
+            self.frame_log.edit_latency_ms.push(drawn);
+            self.frame_log.edit_publish_ms.push(published);
         }
         self.snapshot = Some(s);
         self.new_snapshot = true;
@@ -426,11 +430,21 @@ impl ViewerApp {
         self.edits_sent = true;
         for spec in self.auto.edits.clone() {
             let material = match &spec.target {
-                EditTarget::Material(name) => s
-                    .materials
-                    .iter()
-                    .position(|m| m.name == *name)
-                    .map(|i| i as u32),
+                EditTarget::Material(name) => {
+                    let m = s.materials.iter().position(|m| m.name == *name);
+                    // Show the edit panel: select a patch of that material.
+                    if self.panel.selection.is_none()
+                        && let Some(m) = m
+                    {
+                        self.panel.selection = s
+                            .geometry
+                            .patch_material
+                            .iter()
+                            .position(|&p| p as usize == m)
+                            .map(|p| p as u32);
+                    }
+                    m.map(|i| i as u32)
+                }
                 EditTarget::Patch(p) => {
                     let m = s.geometry.patch_material.get(*p as usize).copied();
                     if m.is_some() {

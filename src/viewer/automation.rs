@@ -149,6 +149,8 @@ pub struct FrameLog {
     pub first_shot_ms: Option<f64>,
     /// Edit sent → first frame that draws it.
     pub edit_latency_ms: Vec<f64>,
+    /// Edit sent → the solver thread published a snapshot with it.
+    pub edit_publish_ms: Vec<f64>,
 }
 
 fn percentile(values: &[f64], p: f64) -> f64 {
@@ -215,8 +217,10 @@ impl FrameLog {
             opt(self.first_light_ms),
             opt(self.first_shot_ms)
         ));
-        for l in &self.edit_latency_ms {
-            s.push_str(&format!("# edit sent -> drawn ms {l:.1}\n"));
+        for (l, p) in self.edit_latency_ms.iter().zip(&self.edit_publish_ms) {
+            s.push_str(&format!(
+                "# edit sent -> published by the solver thread ms {p:.1}, -> drawn ms {l:.1}\n"
+            ));
         }
         s
     }

@@ -52,6 +52,8 @@ pub struct UiOptions {
     pub highlight_shooter: bool,
     /// Start paused.
     pub paused: bool,
+    /// Present without waiting for vertical sync.
+    pub no_vsync: bool,
     pub automation: Automation,
 }
 
@@ -93,6 +95,11 @@ pub fn run(options: ViewerOptions) -> Result<(), ViewerError> {
         renderer: eframe::Renderer::Wgpu,
         ..Default::default()
     };
+    let mut native = native;
+    if ui.no_vsync {
+        native.wgpu_options.surface.present_mode =
+            eframe::egui_wgpu::wgpu::PresentMode::AutoNoVsync;
+    }
     let outcome = std::sync::Arc::new(std::sync::Mutex::new(None::<String>));
     let outcome_app = outcome.clone();
     eframe::run_native(

@@ -167,6 +167,8 @@ pub struct Stats {
 pub struct Snapshot {
     /// Increases with every publish.
     pub seq: u64,
+    /// When the solver thread published it.
+    pub published: std::time::Instant,
     pub geometry: Arc<Geometry>,
     /// Radiance per triangle corner, without the ambient term.
     pub radiance: Arc<Vec<[f32; 3]>>,

@@ -567,6 +567,7 @@ impl Worker {
         self.seq += 1;
         let snapshot = Snapshot {
             seq: self.seq,
+            published: Instant::now(),
             geometry: geometry.clone(),
             radiance: Arc::new(radiance),
             reflectance: self.reflectance.clone(),
