@@ -244,6 +244,14 @@ impl ViewerApp {
             self.frame_log.edit_latency_ms.push(drawn);
             self.frame_log.edit_publish_ms.push(published);
         }
+        // The material changed from elsewhere (reset, scripted edit): show its new values.
+        if let Some(ed) = &self.panel.editor
+            && !self.pending_edits.iter().any(|e| e.material == ed.material)
+            && let Some(m) = s.materials.get(ed.material as usize)
+            && (m.reflectance.to_array() != ed.kd || m.emission.to_array() != ed.ke)
+        {
+            self.panel.editor = None;
+        }
         self.snapshot = Some(s);
         self.new_snapshot = true;
     }

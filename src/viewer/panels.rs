@@ -431,7 +431,7 @@ fn selection_section(
         MAX_REFLECTANCE,
         &mut editor.error,
     );
-    ui.label("emission (Ke, W m⁻² sr⁻¹)");
+    ui.label("emission (Ke, W/(m² sr))");
     let ke_max = editor.ke.iter().copied().fold(50.0, f64::max);
     changed |= rgb_rows(
         ui,
