@@ -8,3 +8,4 @@ pub mod mesh;
 pub mod render;
 pub mod scene;
 pub mod solver;
+pub mod viewer;

@@ -5,6 +5,7 @@
 
 mod formfactor;
 mod render;
+mod view;
 
 use std::path::PathBuf;
 
@@ -34,6 +35,8 @@ pub enum Command {
     Formfactor(formfactor::FormfactorArgs),
     /// Image error of any PFM image against a reference, with the render's pixel mask.
     Compare(render::CompareArgs),
+    /// Open the live viewer (the default command: `nusselt` = `nusselt view --builtin cornell`).
+    View(view::ViewCmdArgs),
 }
 
 /// Which scene to load: an OBJ file or a built-in.
@@ -119,20 +122,7 @@ pub fn main() -> Result<()> {
         Some(Command::Reference(args)) => render::run_reference(&args),
         Some(Command::Formfactor(args)) => formfactor::run(&args),
         Some(Command::Compare(args)) => render::run_compare(&args),
-        None => {
-            // Until the viewer lands: render the built-in Cornell box.
-            let cli = Cli::parse_from([
-                "nusselt",
-                "render",
-                "--builtin",
-                "cornell",
-                "--out",
-                "cornell.png",
-            ]);
-            match cli.command {
-                Some(Command::Render(args)) => render::run_render(&args),
-                _ => bail!("internal: default command did not parse"),
-            }
-        }
+        Some(Command::View(args)) => view::run(&args),
+        None => view::run(&view::ViewCmdArgs::cornell()),
     }
 }

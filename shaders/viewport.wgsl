@@ -1,0 +1,83 @@
+// Nusselt viewport: radiosity solution drawn with per-vertex radiance.
+//
+// Radiance is linear (W m^-2 sr^-1 per channel). The egui-wgpu surface here is not sRGB,
+// so the fragment shader applies exposure and encodes sRGB itself.
+
+struct Uniforms {
+    view_proj: mat4x4<f32>,
+    // rgb: ambient term added as reflectance * ambient (zero when the toggle is off);
+    // w: exposure multiplier.
+    ambient_exposure: vec4<f32>,
+    // x: shooting patch, y: selected patch (0xffffffff = none), z: flags (bit 0: highlight
+    // the shooter, bit 1: highlight the selection).
+    ids: vec4<u32>,
+    element_line_color: vec4<f32>,
+    patch_line_color: vec4<f32>,
+    // x: depth bias of lines in clip w units.
+    params: vec4<f32>,
+};
+
+@group(0) @binding(0) var<uniform> u: Uniforms;
+
+struct MeshIn {
+    @location(0) position: vec3<f32>,
+    @location(1) patch_id: u32,
+    @location(2) reflectance: vec3<f32>,
+    @location(3) radiance: vec3<f32>,
+};
+
+struct MeshOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) radiance: vec3<f32>,
+    @location(1) @interpolate(flat) patch_id: u32,
+};
+
+@vertex
+fn vs_mesh(v: MeshIn) -> MeshOut {
+    var out: MeshOut;
+    out.clip = u.view_proj * vec4<f32>(v.position, 1.0);
+    out.radiance = v.radiance + v.reflectance * u.ambient_exposure.rgb;
+    out.patch_id = v.patch_id;
+    return out;
+}
+
+fn linear_to_srgb(c: vec3<f32>) -> vec3<f32> {
+    let x = clamp(c, vec3<f32>(0.0), vec3<f32>(1.0));
+    let low = x * 12.92;
+    let high = 1.055 * pow(x, vec3<f32>(1.0 / 2.4)) - 0.055;
+    return select(high, low, x <= vec3<f32>(0.0031308));
+}
+
+@fragment
+fn fs_mesh(v: MeshOut) -> @location(0) vec4<f32> {
+    var c = linear_to_srgb(max(v.radiance, vec3<f32>(0.0)) * u.ambient_exposure.w);
+    if ((u.ids.z & 1u) != 0u && v.patch_id == u.ids.x) {
+        c = mix(c, vec3<f32>(1.0, 0.8, 0.1), 0.55);
+    }
+    if ((u.ids.z & 2u) != 0u && v.patch_id == u.ids.y) {
+        c = mix(c, vec3<f32>(0.2, 0.55, 1.0), 0.4);
+    }
+    return vec4<f32>(c, 1.0);
+}
+
+struct LineOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) @interpolate(flat) color: vec4<f32>,
+};
+
+// Element edges are drawn as instance 0, patch outlines as instance 1.
+@vertex
+fn vs_line(@location(0) position: vec3<f32>, @builtin(instance_index) line_set: u32) -> LineOut {
+    var out: LineOut;
+    var clip = u.view_proj * vec4<f32>(position, 1.0);
+    // Pull lines slightly toward the eye so they win the depth test against their faces.
+    clip.z = clip.z - u.params.x * clip.w;
+    out.clip = clip;
+    out.color = select(u.element_line_color, u.patch_line_color, line_set == 1u);
+    return out;
+}
+
+@fragment
+fn fs_line(v: LineOut) -> @location(0) vec4<f32> {
+    return v.color;
+}

@@ -1,0 +1,205 @@
+//! `nusselt view`: the live viewer, and its scripted runs (screenshots, frame logs).
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+
+use super::SceneArgs;
+use crate::formfactor::FormFactorMethod;
+use crate::viewer::{
+    Automation, EditSpec, ScreenshotPlan, ScreenshotWhen, UiOptions, ViewerOptions,
+};
+
+#[derive(Args, Debug, Clone)]
+pub struct ViewCmdArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Element edge length (scene units); default 1/80 of the scene's diagonal.
+    #[arg(long)]
+    pub element_size: Option<f64>,
+    /// Form-factor method.
+    #[arg(long)]
+    pub method: Option<String>,
+    /// Window size in points, WxH.
+    #[arg(long, default_value = "1280x800")]
+    pub window: String,
+    /// Save a screenshot of the whole window to this PNG, then exit.
+    #[arg(long)]
+    pub screenshot: Option<PathBuf>,
+    /// Screenshot after this many shots (the solver stops there).
+    #[arg(long, requires = "screenshot", conflicts_with_all = ["after_seconds", "after_converged"])]
+    pub after_shots: Option<usize>,
+    /// Screenshot this many seconds after the window opened.
+    #[arg(long, requires = "screenshot", conflicts_with = "after_converged")]
+    pub after_seconds: Option<f64>,
+    /// Screenshot once converged (the default).
+    #[arg(long, requires = "screenshot")]
+    pub after_converged: bool,
+    /// Give up on the screenshot after this many seconds (exit status 1).
+    #[arg(long, default_value_t = 600.0)]
+    pub screenshot_timeout: f64,
+    /// With --screenshot, also save the viewport alone as PNG (the viewport export).
+    #[arg(long, requires = "screenshot")]
+    pub viewport_png: Option<PathBuf>,
+    /// With --screenshot, also export the solution as PLY.
+    #[arg(long, requires = "screenshot")]
+    pub export_ply: Option<PathBuf>,
+    /// Draw the element wireframe.
+    #[arg(long)]
+    pub wireframe: bool,
+    /// Draw patch outlines.
+    #[arg(long)]
+    pub patch_outlines: bool,
+    /// Start with the ambient term off.
+    #[arg(long)]
+    pub no_ambient: bool,
+    /// Don't highlight the shooting patch.
+    #[arg(long)]
+    pub no_highlight: bool,
+    /// Exposure in stops.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+    /// Start paused.
+    #[arg(long)]
+    pub paused: bool,
+    /// Present frames without waiting for vertical sync.
+    #[arg(long)]
+    pub no_vsync: bool,
+    /// Material edit, as in the edit panel: TARGET:kd=r,g,b[:ke=r,g,b], TARGET a material
+    /// name or #PATCH (which is also selected). Repeatable.
+    #[arg(long)]
+    pub edit: Vec<String>,
+    /// Send the --edit edits once this many shots are on screen.
+    #[arg(long, default_value_t = 0)]
+    pub edit_after_shots: usize,
+    /// Select this patch at start.
+    #[arg(long)]
+    pub select: Option<u32>,
+    /// Write per-frame timings (CSV) and the latency summary to this file at exit.
+    #[arg(long)]
+    pub frame_log: Option<PathBuf>,
+}
+
+impl ViewCmdArgs {
+    /// The viewer's command line with no arguments: the built-in Cornell box.
+    pub fn cornell() -> ViewCmdArgs {
+        use clap::Parser;
+        #[derive(clap::Parser)]
+        struct Only {
+            #[command(flatten)]
+            args: ViewCmdArgs,
+        }
+        Only::parse_from(["nusselt", "--builtin", "cornell"]).args
+    }
+}
+
+fn parse_window(text: &str) -> Result<[f32; 2]> {
+    let (w, h) = text
+        .split_once(['x', 'X'])
+        .with_context(|| format!("--window '{text}': expected WxH, e.g. 1280x800"))?;
+    let parse = |s: &str| -> Result<f32> {
+        let v: u32 = s
+            .trim()
+            .parse()
+            .with_context(|| format!("--window '{text}': '{s}' is not a whole number"))?;
+        if !(64..=8192).contains(&v) {
+            bail!("--window '{text}': sizes must be in 64..=8192");
+        }
+        Ok(v as f32)
+    };
+    Ok([parse(w)?, parse(h)?])
+}
+
+pub fn run(args: &ViewCmdArgs) -> Result<()> {
+    let mut scene_args = args.scene.clone();
+    if scene_args.scene.is_none() && scene_args.builtin.is_none() {
+        scene_args.builtin = Some("cornell".into());
+    }
+    let scene = scene_args.load()?;
+    if let Some(s) = args.element_size
+        && !(s.is_finite() && s > 0.0)
+    {
+        bail!("--element-size must be a positive number, got {s}");
+    }
+    let method = match &args.method {
+        Some(m) => FormFactorMethod::parse(m).with_context(|| {
+            let names: Vec<&str> = FormFactorMethod::ALL.iter().map(|m| m.name()).collect();
+            format!("--method '{m}': expected one of {}", names.join(", "))
+        })?,
+        None => FormFactorMethod::ALL[0],
+    };
+    let window = parse_window(&args.window)?;
+    let edits = args
+        .edit
+        .iter()
+        .map(|e| EditSpec::parse(e).map_err(|m| anyhow::anyhow!("--edit {m}")))
+        .collect::<Result<Vec<_>>>()?;
+    let when = match (args.after_shots, args.after_seconds) {
+        (Some(n), _) => ScreenshotWhen::Shots(n),
+        (None, Some(s)) => {
+            if !(s.is_finite() && s >= 0.0) {
+                bail!("--after-seconds must be a number >= 0, got {s}");
+            }
+            ScreenshotWhen::Seconds(s)
+        }
+        (None, None) => ScreenshotWhen::Converged,
+    };
+    if !(args.screenshot_timeout.is_finite() && args.screenshot_timeout > 0.0) {
+        bail!("--screenshot-timeout must be a positive number of seconds");
+    }
+    if !args.exposure.is_finite() {
+        bail!("--exposure must be a finite number of stops");
+    }
+    let automation = Automation {
+        screenshot: args.screenshot.clone().map(|path| ScreenshotPlan {
+            path,
+            when,
+            timeout: Duration::from_secs_f64(args.screenshot_timeout),
+        }),
+        frame_log: args.frame_log.clone(),
+        edits,
+        edit_after_shots: args.edit_after_shots,
+        select: args.select,
+        viewport_png: args.viewport_png.clone(),
+        export_ply: args.export_ply.clone(),
+    };
+    crate::viewer::run(ViewerOptions {
+        scene,
+        ui: UiOptions {
+            element_size: args.element_size,
+            method,
+            window,
+            wireframe: args.wireframe,
+            patch_outlines: args.patch_outlines,
+            ambient: !args.no_ambient,
+            exposure_stops: args.exposure,
+            highlight_shooter: !args.no_highlight,
+            paused: args.paused,
+            no_vsync: args.no_vsync,
+            automation,
+        },
+    })?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn window_sizes() {
+        assert_eq!(parse_window("800x600").expect("ok"), [800.0, 600.0]);
+        assert!(parse_window("800").is_err());
+        assert!(parse_window("0x600").is_err());
+        assert!(parse_window("axb").is_err());
+    }
+
+    #[test]
+    fn no_arguments_is_the_cornell_box() {
+        let a = ViewCmdArgs::cornell();
+        assert_eq!(a.scene.builtin.as_deref(), Some("cornell"));
+        assert!(a.screenshot.is_none());
+    }
+}

@@ -1,0 +1,83 @@
+//! Every WGSL file in shaders/ parses and validates with naga (no GPU needed), and the
+//! viewport shader's uniform block has the layout of `viewer::render::Uniforms`.
+
+use std::path::Path;
+
+fn validate(path: &Path) -> naga::Module {
+    let text = std::fs::read_to_string(path).expect("read shader");
+    let module = naga::front::wgsl::parse_str(&text).unwrap_or_else(|e| {
+        panic!(
+            "{}",
+            e.emit_to_string_with_path(&text, &path.display().to_string())
+        )
+    });
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    )
+    .validate(&module)
+    .unwrap_or_else(|e| panic!("{}: {}", path.display(), e.emit_to_string(&text)));
+    module
+}
+
+#[test]
+fn every_shader_validates() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+    let mut count = 0;
+    for entry in std::fs::read_dir(&dir).expect("shaders/") {
+        let path = entry.expect("entry").path();
+        if path.extension().is_some_and(|e| e == "wgsl") {
+            validate(&path);
+            count += 1;
+        }
+    }
+    assert!(count >= 1, "no shaders found in {}", dir.display());
+}
+
+#[test]
+fn viewport_shader_matches_the_rust_side() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders/viewport.wgsl");
+    let module = validate(&path);
+    // The embedded copy is the file.
+    assert_eq!(
+        nusselt::viewer::render::SHADER_SOURCE,
+        std::fs::read_to_string(&path).expect("read")
+    );
+    let names: Vec<&str> = module
+        .entry_points
+        .iter()
+        .map(|e| e.name.as_str())
+        .collect();
+    for want in ["vs_mesh", "fs_mesh", "vs_line", "fs_line"] {
+        assert!(names.contains(&want), "{want} missing: {names:?}");
+    }
+    let (_, uniforms) = module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some("Uniforms"))
+        .expect("Uniforms struct");
+    let naga::TypeInner::Struct { span, .. } = &uniforms.inner else {
+        panic!("Uniforms is not a struct");
+    };
+    assert_eq!(
+        *span as usize,
+        std::mem::size_of::<nusselt::viewer::render::Uniforms>(),
+        "uniform block size differs between WGSL and Rust"
+    );
+}
+
+#[test]
+fn a_broken_shader_is_rejected() {
+    // The check above can fail: a type error must not validate.
+    let bad = "@fragment fn f() -> @location(0) vec4<f32> { return vec3<f32>(1.0); }";
+    let parsed = naga::front::wgsl::parse_str(bad);
+    let valid = parsed.map(|m| {
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::default(),
+        )
+        .validate(&m)
+        .is_ok()
+    });
+    assert!(!matches!(valid, Ok(true)));
+}
