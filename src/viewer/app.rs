@@ -235,7 +235,11 @@ impl ViewerApp {
             if drawn {
                 latencies.push((
                     (now - e.sent).as_secs_f64() * 1e3,
-                    s.published.saturating_duration_since(e.sent).as_secs_f64() * 1e3,
+                    s.edit_published
+                        .unwrap_or(s.published)
+                        .saturating_duration_since(e.sent)
+                        .as_secs_f64()
+                        * 1e3,
                 ));
             }
             !drawn

@@ -181,6 +181,8 @@ impl SolverHandle {
             elapsed: Duration::ZERO,
             last_publish: None,
             dirty: false,
+            edit_unpublished: false,
+            edit_published: None,
         };
         let thread = std::thread::Builder::new()
             .name("nusselt-solver".into())
@@ -291,6 +293,9 @@ struct Worker {
     last_publish: Option<Instant>,
     /// Something changed since the last publish.
     dirty: bool,
+    /// A material edit was applied and not yet published.
+    edit_unpublished: bool,
+    edit_published: Option<Instant>,
 }
 
 enum Flow {
@@ -519,6 +524,7 @@ impl Worker {
         };
         match s.set_material(id, reflectance, emission) {
             Ok(()) => {
+                self.edit_unpublished = true;
                 if let Some(g) = &self.geometry {
                     self.reflectance = Arc::new(corner_reflectance(g, s));
                     self.reflectance_rev += 1;
@@ -565,9 +571,15 @@ impl Worker {
             next_shooter: solver.next_shooter().map(|p| p.0),
         };
         self.seq += 1;
+        let now = Instant::now();
+        if self.edit_unpublished {
+            self.edit_unpublished = false;
+            self.edit_published = Some(now);
+        }
         let snapshot = Snapshot {
             seq: self.seq,
-            published: Instant::now(),
+            published: now,
+            edit_published: self.edit_published,
             geometry: geometry.clone(),
             radiance: Arc::new(radiance),
             reflectance: self.reflectance.clone(),
@@ -585,7 +597,7 @@ impl Worker {
             method: solver.config().method,
         };
         self.latest.publish(Arc::new(snapshot));
-        self.last_publish = Some(Instant::now());
+        self.last_publish = Some(now);
         self.dirty = false;
         (self.waker)();
     }
