@@ -191,6 +191,7 @@ fn an_edit_while_running_converges_to_a_fresh_solve() {
             play: true,
             stop_unshot: stop,
             max_shots: None,
+            shot_threads: None,
         },
     );
     let deadline = Instant::now() + Duration::from_secs(240);

@@ -78,6 +78,7 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
         },
         play: !options.paused,
         max_shots,
+        shot_threads: options.solver_threads,
         ..Default::default()
     }
 }

@@ -128,6 +128,22 @@ pub struct ThreadConfig {
     pub stop_unshot: f64,
     /// Stop shooting after this many shots since the last (re)start (scripted runs).
     pub max_shots: Option<usize>,
+    /// Threads that compute form-factor rows; `None` = one per core. (Leaving the UI a
+    /// core was tried on the 2-core test machine with lavapipe: no measurable change in
+    /// frame times under load, 25 % fewer shots; see docs/VIEWER.md.)
+    pub shot_threads: Option<usize>,
+}
+
+impl ThreadConfig {
+    pub fn shot_threads(&self) -> usize {
+        self.shot_threads
+            .unwrap_or_else(|| {
+                std::thread::available_parallelism()
+                    .map_or(1, |n| n.get())
+                    .saturating_sub(1)
+            })
+            .max(1)
+    }
 }
 
 impl Default for ThreadConfig {
@@ -137,6 +153,7 @@ impl Default for ThreadConfig {
             play: true,
             stop_unshot: 1e-6,
             max_shots: None,
+            shot_threads: None,
         }
     }
 }
@@ -158,6 +175,7 @@ impl SolverHandle {
         let (etx, erx) = std::sync::mpsc::sync_channel(64);
         let cancel = Arc::new(AtomicBool::new(false));
         let latest = Arc::new(Latest::default());
+        let threads = config.shot_threads();
         let worker = Worker {
             rx,
             events: etx,
@@ -186,7 +204,20 @@ impl SolverHandle {
         };
         let thread = std::thread::Builder::new()
             .name("nusselt-solver".into())
-            .spawn(move || worker.run(scene))?;
+            .spawn(move || {
+                // Shots run in their own, named pool.
+                match rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .thread_name(|i| format!("nusselt-shot-{i}"))
+                    .build()
+                {
+                    Ok(pool) => pool.install(|| worker.run(scene)),
+                    Err(e) => {
+                        eprintln!("viewer: no thread pool for shots ({e}); using the global one");
+                        worker.run(scene)
+                    }
+                }
+            })?;
         Ok(Self {
             tx,
             cancel,
