@@ -191,6 +191,7 @@ fn an_edit_while_running_converges_to_a_fresh_solve() {
             play: true,
             stop_unshot: stop,
             max_shots: None,
+            shot_threads: None,
         },
     );
     let deadline = Instant::now() + Duration::from_secs(240);
@@ -411,4 +412,62 @@ fn it_starts_dark_brightens_and_the_ambient_term_decays() {
         last.ambient
     );
     assert!(last.unshot_fraction <= 1e-3 && first.unshot_fraction > last.unshot_fraction);
+}
+
+#[test]
+fn a_surface_made_a_light_and_back_converges_to_the_original() {
+    let stop = 1e-7;
+    let (mut h, _) = spawn(
+        cornell(),
+        ThreadConfig {
+            solver: coarse_config(),
+            stop_unshot: stop,
+            ..Default::default()
+        },
+    );
+    let deadline = Instant::now() + Duration::from_secs(240);
+    let scene = cornell();
+    let green = scene
+        .materials
+        .iter()
+        .position(|m| m.name == "green")
+        .expect("green");
+    let kd = scene.materials[green].reflectance.to_array();
+    let edit = |ke: [f64; 3]| Command::SetMaterial {
+        material: MaterialId(green as u32),
+        reflectance: kd,
+        emission: ke,
+    };
+    first_snapshot(&h, deadline, |s| s.stats.shots >= 10);
+    send(&h, edit([3.0, 3.0, 3.0]), deadline);
+    let lit = first_snapshot(&h, deadline, |s| {
+        s.materials[green].is_emitter() && s.stats.shots >= 40
+    });
+    send(&h, edit([0.0; 3]), deadline);
+    let done = first_snapshot(&h, deadline, |s| {
+        !s.materials[green].is_emitter() && s.stats.converged
+    });
+    h.shutdown(Duration::from_secs(30));
+    assert!(done.stats.shots > lit.stats.shots);
+    let mut fresh = ProgressiveSolver::new(cornell(), coarse_config()).expect("solver");
+    fresh.run(
+        &StopCriteria {
+            unshot: stop,
+            ..Default::default()
+        },
+        &std::sync::atomic::AtomicBool::new(false),
+        &mut |_| {},
+    );
+    let want = done
+        .geometry
+        .expand(&fresh.mesh().vertex_values(&fresh.element_radiance(false)));
+    let rel = rel_l2(&done.radiance, &want, &done.geometry.positions);
+    eprintln!(
+        "light and back: {} shots; vs fresh {rel:.2e}",
+        done.stats.shots
+    );
+    assert!(
+        rel < 5e-3,
+        "made a light and back: differs from the original by {rel}"
+    );
 }

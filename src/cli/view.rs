@@ -67,6 +67,9 @@ pub struct ViewCmdArgs {
     /// Present frames without waiting for vertical sync.
     #[arg(long)]
     pub no_vsync: bool,
+    /// Threads computing form factors; default one per core.
+    #[arg(long)]
+    pub solver_threads: Option<usize>,
     /// Material edit, as in the edit panel: TARGET:kd=r,g,b[:ke=r,g,b], TARGET a material
     /// name or #PATCH (which is also selected). Repeatable.
     #[arg(long)]
@@ -149,6 +152,9 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
     if !(args.screenshot_timeout.is_finite() && args.screenshot_timeout > 0.0) {
         bail!("--screenshot-timeout must be a positive number of seconds");
     }
+    if args.solver_threads == Some(0) {
+        bail!("--solver-threads must be at least 1");
+    }
     if !args.exposure.is_finite() {
         bail!("--exposure must be a finite number of stops");
     }
@@ -178,6 +184,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
             highlight_shooter: !args.no_highlight,
             paused: args.paused,
             no_vsync: args.no_vsync,
+            solver_threads: args.solver_threads,
             automation,
         },
     })?;

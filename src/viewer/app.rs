@@ -78,6 +78,7 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
         },
         play: !options.paused,
         max_shots,
+        shot_threads: options.solver_threads,
         ..Default::default()
     }
 }
@@ -235,7 +236,11 @@ impl ViewerApp {
             if drawn {
                 latencies.push((
                     (now - e.sent).as_secs_f64() * 1e3,
-                    s.published.saturating_duration_since(e.sent).as_secs_f64() * 1e3,
+                    s.edit_published
+                        .unwrap_or(s.published)
+                        .saturating_duration_since(e.sent)
+                        .as_secs_f64()
+                        * 1e3,
                 ));
             }
             !drawn

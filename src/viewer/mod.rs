@@ -54,6 +54,8 @@ pub struct UiOptions {
     pub paused: bool,
     /// Present without waiting for vertical sync.
     pub no_vsync: bool,
+    /// Threads computing form factors (`None`: one per core).
+    pub solver_threads: Option<usize>,
     pub automation: Automation,
 }
 

@@ -169,6 +169,8 @@ pub struct Snapshot {
     pub seq: u64,
     /// When the solver thread published it.
     pub published: std::time::Instant,
+    /// When the first snapshot after the latest material edit was published.
+    pub edit_published: Option<std::time::Instant>,
     pub geometry: Arc<Geometry>,
     /// Radiance per triangle corner, without the ambient term.
     pub radiance: Arc<Vec<[f32; 3]>>,

@@ -128,6 +128,22 @@ pub struct ThreadConfig {
     pub stop_unshot: f64,
     /// Stop shooting after this many shots since the last (re)start (scripted runs).
     pub max_shots: Option<usize>,
+    /// Threads that compute form-factor rows; `None` = one per core. (Leaving the UI a
+    /// core was tried on the 2-core test machine with lavapipe: no measurable change in
+    /// frame times under load, 25 % fewer shots; see docs/VIEWER.md.)
+    pub shot_threads: Option<usize>,
+}
+
+impl ThreadConfig {
+    pub fn shot_threads(&self) -> usize {
+        self.shot_threads
+            .unwrap_or_else(|| {
+                std::thread::available_parallelism()
+                    .map_or(1, |n| n.get())
+                    .saturating_sub(1)
+            })
+            .max(1)
+    }
 }
 
 impl Default for ThreadConfig {
@@ -137,6 +153,7 @@ impl Default for ThreadConfig {
             play: true,
             stop_unshot: 1e-6,
             max_shots: None,
+            shot_threads: None,
         }
     }
 }
@@ -158,6 +175,7 @@ impl SolverHandle {
         let (etx, erx) = std::sync::mpsc::sync_channel(64);
         let cancel = Arc::new(AtomicBool::new(false));
         let latest = Arc::new(Latest::default());
+        let threads = config.shot_threads();
         let worker = Worker {
             rx,
             events: etx,
@@ -181,10 +199,25 @@ impl SolverHandle {
             elapsed: Duration::ZERO,
             last_publish: None,
             dirty: false,
+            edit_unpublished: false,
+            edit_published: None,
         };
         let thread = std::thread::Builder::new()
             .name("nusselt-solver".into())
-            .spawn(move || worker.run(scene))?;
+            .spawn(move || {
+                // Shots run in their own, named pool.
+                match rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .thread_name(|i| format!("nusselt-shot-{i}"))
+                    .build()
+                {
+                    Ok(pool) => pool.install(|| worker.run(scene)),
+                    Err(e) => {
+                        eprintln!("viewer: no thread pool for shots ({e}); using the global one");
+                        worker.run(scene)
+                    }
+                }
+            })?;
         Ok(Self {
             tx,
             cancel,
@@ -291,6 +324,9 @@ struct Worker {
     last_publish: Option<Instant>,
     /// Something changed since the last publish.
     dirty: bool,
+    /// A material edit was applied and not yet published.
+    edit_unpublished: bool,
+    edit_published: Option<Instant>,
 }
 
 enum Flow {
@@ -519,6 +555,7 @@ impl Worker {
         };
         match s.set_material(id, reflectance, emission) {
             Ok(()) => {
+                self.edit_unpublished = true;
                 if let Some(g) = &self.geometry {
                     self.reflectance = Arc::new(corner_reflectance(g, s));
                     self.reflectance_rev += 1;
@@ -565,9 +602,15 @@ impl Worker {
             next_shooter: solver.next_shooter().map(|p| p.0),
         };
         self.seq += 1;
+        let now = Instant::now();
+        if self.edit_unpublished {
+            self.edit_unpublished = false;
+            self.edit_published = Some(now);
+        }
         let snapshot = Snapshot {
             seq: self.seq,
-            published: Instant::now(),
+            published: now,
+            edit_published: self.edit_published,
             geometry: geometry.clone(),
             radiance: Arc::new(radiance),
             reflectance: self.reflectance.clone(),
@@ -585,7 +628,7 @@ impl Worker {
             method: solver.config().method,
         };
         self.latest.publish(Arc::new(snapshot));
-        self.last_publish = Some(Instant::now());
+        self.last_publish = Some(now);
         self.dirty = false;
         (self.waker)();
     }
