@@ -12,6 +12,11 @@
 
 pub mod cases;
 pub mod contour;
+pub mod exact;
+pub mod hemicube;
+pub mod hybrid;
+pub mod montecarlo;
+pub mod raycast;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -23,35 +28,104 @@ use crate::geometry::{Bvh, Ray, Rng, polygon};
 use crate::mesh::{Mesh, PatchId};
 use crate::scene::Scene;
 
-/// Which method computes form factors.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+/// Which method computes form factors. Parsed from its [`name`](Self::name) by
+/// [`FromStr`](std::str::FromStr) and by clap (`ValueEnum`), so every command line shares
+/// one parser and one list.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum)]
 pub enum FormFactorMethod {
     /// Exact point-to-polygon contour formula × stratified visibility.
     Contour,
+    /// Exact polygon-to-polygon double contour integral (cases); as a solver row, the
+    /// element's own polygon against the patch, × stratified visibility.
+    Exact,
+    /// Item-buffer hemicube at the shooter's centroid.
+    Hemicube,
+    /// Cosine-weighted rays from the shooter against the scene.
+    Raycast,
+    /// Random point pairs on both polygons, with visibility.
+    Montecarlo,
+    /// Analytic for lights and near or small receivers, hemicube for the rest.
+    Hybrid,
 }
 
 impl FormFactorMethod {
-    pub const ALL: &'static [FormFactorMethod] = &[FormFactorMethod::Contour];
+    pub const ALL: &'static [FormFactorMethod] = &[
+        FormFactorMethod::Contour,
+        FormFactorMethod::Exact,
+        FormFactorMethod::Hemicube,
+        FormFactorMethod::Raycast,
+        FormFactorMethod::Montecarlo,
+        FormFactorMethod::Hybrid,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             FormFactorMethod::Contour => "contour",
+            FormFactorMethod::Exact => "exact",
+            FormFactorMethod::Hemicube => "hemicube",
+            FormFactorMethod::Raycast => "raycast",
+            FormFactorMethod::Montecarlo => "montecarlo",
+            FormFactorMethod::Hybrid => "hybrid",
         }
     }
 
     pub fn parse(s: &str) -> Option<FormFactorMethod> {
         Self::ALL.iter().copied().find(|m| m.name() == s)
     }
+
+    /// The names, comma-separated (for messages).
+    pub fn names() -> String {
+        Self::ALL
+            .iter()
+            .map(|m| m.name())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+impl std::fmt::Display for FormFactorMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// An unknown method name.
+#[derive(Debug, thiserror::Error)]
+#[error("unknown form-factor method '{0}' (available: {names})", names = FormFactorMethod::names())]
+pub struct UnknownMethod(pub String);
+
+impl std::str::FromStr for FormFactorMethod {
+    type Err = UnknownMethod;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::parse(s).ok_or_else(|| UnknownMethod(s.to_string()))
+    }
 }
 
 /// Tunables shared by all methods.
 #[derive(Clone, Debug)]
 pub struct FormFactorParams {
-    /// Shadow rays per receiver–patch pair (rounded to a square, stratified).
+    /// Shadow rays per receiver–patch pair (rounded to a square, stratified); for
+    /// `montecarlo` rows, point pairs per receiving element.
     pub visibility_rays: u32,
     /// Probe with 4 rays first for non-emitting shooters (see [`visibility_fraction`]).
     pub probe_visibility: bool,
     pub seed: u64,
+    /// Hemicube resolution: pixels across the top face (the sides are half as tall).
+    pub hemicube_res: u32,
+    /// Rotate each hemicube by a random angle about the normal (breaks aliasing patterns).
+    pub hemicube_rotate: bool,
+    /// Rays per `raycast` row (from the shooting patch), and samples per case for the
+    /// sampling methods (`raycast` rays, `montecarlo` point pairs).
+    pub rays: u32,
+    /// Refinement levels of the adaptive cubature over A1 for `exact` cases with occluders
+    /// (the integrand has kinks along penumbra boundaries, so its 1e-10 tolerance is not
+    /// reached there; each level quarters the cells near the kinks).
+    pub cubature_depth: u32,
+    /// `hybrid`: a receiver closer than `hybrid_k · √(A_shooter/π)` is computed analytically.
+    pub hybrid_k: f64,
+    /// `hybrid`: a receiver expected to cover fewer hemicube pixels than this is computed
+    /// analytically too (aliasing of small or far patches).
+    pub hybrid_min_pixels: f64,
 }
 
 impl Default for FormFactorParams {
@@ -60,6 +134,12 @@ impl Default for FormFactorParams {
             visibility_rays: 16,
             probe_visibility: true,
             seed: 1,
+            hemicube_res: 256,
+            hemicube_rotate: true,
+            rays: 1 << 16,
+            cubature_depth: 5,
+            hybrid_k: 5.0,
+            hybrid_min_pixels: 64.0,
         }
     }
 }
@@ -173,7 +253,7 @@ pub fn visibility_fraction(
     visible as f64 / (m * m) as f64
 }
 
-fn side(rays: u32) -> u32 {
+pub(crate) fn side(rays: u32) -> u32 {
     ((rays.max(1) as f64).sqrt().round() as u32).max(1)
 }
 
@@ -182,7 +262,7 @@ fn side(rays: u32) -> u32 {
 /// stratified points on the shooter, plus centre to centre, all arrive. Then every element
 /// of the receiver skips its own shadow rays (a blocker that slips between these 17 rays is
 /// missed, as with the per-element probe).
-fn patch_pair_unblocked(
+pub(crate) fn patch_pair_unblocked(
     ctx: &RowContext,
     receiver: &crate::mesh::Patch,
     shooter: &crate::mesh::Patch,
@@ -274,19 +354,16 @@ pub fn compute_row(
 ) -> bool {
     match method {
         FormFactorMethod::Contour => contour_row(ctx, shooter, out, cancel),
+        FormFactorMethod::Exact => exact::row(ctx, shooter, out, cancel),
+        FormFactorMethod::Hemicube => hemicube::row(ctx, shooter, out, cancel),
+        FormFactorMethod::Raycast => raycast::row(ctx, shooter, out, cancel),
+        FormFactorMethod::Montecarlo => montecarlo::row(ctx, shooter, out, cancel),
+        FormFactorMethod::Hybrid => hybrid::row(ctx, shooter, out, cancel),
     }
 }
 
-fn contour_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicBool) -> bool {
-    let mesh = ctx.mesh;
-    let patch = mesh.patch(shooter);
-    let sampler = PolygonSampler::new(&patch.polygon);
-    let m = side(ctx.params.visibility_rays);
-    let seed = ctx.params.seed;
-    // Light sources always get every ray: their shadows matter most.
-    let emitter = ctx.scene.materials[patch.material.0 as usize].is_emitter();
-    let probe = ctx.params.probe_visibility && !emitter;
-    // One slice of `out` per receiving patch (a patch's elements are contiguous).
+/// Splits a row into one slice per receiving patch (a patch's elements are contiguous).
+pub(crate) fn patch_slices<'o>(mesh: &Mesh, out: &'o mut [f32]) -> Vec<(usize, &'o mut [f32])> {
     let mut slices = Vec::with_capacity(mesh.patches.len());
     let mut rest = out;
     for (k, r) in mesh.patches.iter().enumerate() {
@@ -294,46 +371,86 @@ fn contour_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &Ato
         slices.push((k, head));
         rest = tail;
     }
-    slices.into_par_iter().for_each(|(k, slice)| {
-        if cancel.load(Ordering::Relaxed) {
-            return;
+    slices
+}
+
+/// What the analytic rows share for one shot.
+pub(crate) struct ShotSetup {
+    pub sampler: PolygonSampler,
+    pub m: u32,
+    pub probe: bool,
+}
+
+impl ShotSetup {
+    pub fn new(ctx: &RowContext, shooter: PatchId) -> Self {
+        let patch = ctx.mesh.patch(shooter);
+        // Light sources always get every ray: their shadows matter most.
+        let emitter = ctx.scene.materials[patch.material.0 as usize].is_emitter();
+        Self {
+            sampler: PolygonSampler::new(&patch.polygon),
+            m: side(ctx.params.visibility_rays),
+            probe: ctx.params.probe_visibility && !emitter,
         }
-        let receiver = &mesh.patches[k];
-        let first = receiver.elements.start as usize;
-        if k == shooter.0 as usize {
-            slice.fill(0.0);
-            return;
-        }
-        // BVH ids are input faces; a planar face cannot block rays between its points.
-        let ignore = [receiver.face as u32, patch.face as u32];
-        let all_visible = probe && patch_pair_unblocked(ctx, receiver, patch, shooter, k, ignore);
-        for (i, f) in slice.iter_mut().enumerate() {
-            let j = first + i;
-            let e = &mesh.elements[j];
-            if all_visible {
-                *f = contour::point_to_polygon_with_normal(
-                    e.centroid,
-                    e.normal,
-                    &patch.polygon,
-                    patch.normal,
-                ) as f32;
-                continue;
-            }
-            let mut rng = Rng::new(hash_seed(&[seed, shooter.0 as u64, j as u64]), 0);
-            let v = occluded_point_to_polygon(
-                ctx.bvh,
+    }
+}
+
+/// The contour method for the elements of receiving patch `k` (`slice`).
+pub(crate) fn contour_patch(
+    ctx: &RowContext,
+    shooter: PatchId,
+    setup: &ShotSetup,
+    k: usize,
+    slice: &mut [f32],
+) {
+    let mesh = ctx.mesh;
+    let patch = mesh.patch(shooter);
+    let receiver = &mesh.patches[k];
+    let first = receiver.elements.start as usize;
+    if k == shooter.0 as usize {
+        slice.fill(0.0);
+        return;
+    }
+    // BVH ids are input faces; a planar face cannot block rays between its points.
+    let ignore = [receiver.face as u32, patch.face as u32];
+    let all_visible = setup.probe && patch_pair_unblocked(ctx, receiver, patch, shooter, k, ignore);
+    for (i, f) in slice.iter_mut().enumerate() {
+        let j = first + i;
+        let e = &mesh.elements[j];
+        if all_visible {
+            *f = contour::point_to_polygon_with_normal(
                 e.centroid,
                 e.normal,
                 &patch.polygon,
-                &sampler,
-                m,
-                probe,
-                ctx.epsilon,
-                ignore,
-                &mut rng,
-            );
-            *f = v as f32;
+                patch.normal,
+            ) as f32;
+            continue;
         }
-    });
+        let mut rng = Rng::new(hash_seed(&[ctx.params.seed, shooter.0 as u64, j as u64]), 0);
+        let v = occluded_point_to_polygon(
+            ctx.bvh,
+            e.centroid,
+            e.normal,
+            &patch.polygon,
+            &setup.sampler,
+            setup.m,
+            setup.probe,
+            ctx.epsilon,
+            ignore,
+            &mut rng,
+        );
+        *f = v as f32;
+    }
+}
+
+fn contour_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicBool) -> bool {
+    let setup = ShotSetup::new(ctx, shooter);
+    patch_slices(ctx.mesh, out)
+        .into_par_iter()
+        .for_each(|(k, slice)| {
+            if cancel.load(Ordering::Relaxed) {
+                return;
+            }
+            contour_patch(ctx, shooter, &setup, k, slice);
+        });
     !cancel.load(Ordering::Relaxed)
 }
