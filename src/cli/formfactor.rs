@@ -3,39 +3,48 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Result, anyhow};
+use anyhow::{Result, bail};
 use clap::Args;
 
-use crate::formfactor::{FormFactorMethod, FormFactorParams, cases};
+use super::render::{MethodArgs, parse_method};
+use crate::formfactor::{FormFactorParams, cases};
 
 #[derive(Args, Debug)]
 pub struct FormfactorArgs {
     /// JSON array of cases (A1/A2 polygons or point + point_normal, optional occluders).
     pub cases: PathBuf,
-    /// Method: contour.
+    /// Method: contour, exact, hemicube, raycast, montecarlo or hybrid.
     #[arg(long, default_value = "contour")]
     pub method: String,
-    /// Shadow rays per visibility estimate (used when a case has occluders).
+    /// Shadow rays per visibility estimate (contour and hybrid, when a case has occluders).
     #[arg(long, default_value_t = 256)]
     pub vis_rays: u32,
+    /// Samples per case for raycast (rays) and montecarlo (point pairs).
+    #[arg(long, default_value_t = 1 << 16)]
+    pub rays: u32,
+    /// Refinement levels of the cubature over A1 for exact with occluders.
+    #[arg(long, default_value_t = FormFactorParams::default().cubature_depth)]
+    pub cubature_depth: u32,
+    #[command(flatten)]
+    pub method_args: MethodArgs,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
 }
 
 pub fn run(args: &FormfactorArgs) -> Result<()> {
-    let method = FormFactorMethod::parse(&args.method).ok_or_else(|| {
-        let names: Vec<_> = FormFactorMethod::ALL.iter().map(|m| m.name()).collect();
-        anyhow!(
-            "unknown --method '{}' (available: {})",
-            args.method,
-            names.join(", ")
-        )
-    })?;
+    let method = parse_method("--method", &args.method)?;
+    if args.rays == 0 || args.vis_rays == 0 {
+        bail!("--rays and --vis-rays must be at least 1");
+    }
+    args.method_args.check()?;
     let list = cases::load(&args.cases)?;
     let params = FormFactorParams {
         visibility_rays: args.vis_rays,
         probe_visibility: false,
         seed: args.seed,
+        rays: args.rays,
+        cubature_depth: args.cubature_depth.min(12),
+        ..args.method_args.params()
     };
     for case in &list {
         let start = Instant::now();

@@ -43,12 +43,18 @@ pub struct RenderArgs {
     pub seconds: Option<f64>,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Form-factor method.
+    /// Form-factor method: contour, exact, hemicube, raycast, montecarlo or hybrid.
     #[arg(long, default_value = "contour")]
     pub formfactor: String,
-    /// Shadow rays per receiver-patch visibility estimate.
+    /// Shadow rays per receiver-patch visibility estimate (montecarlo: point pairs per
+    /// element).
     #[arg(long, default_value_t = 16)]
     pub vis_rays: u32,
+    /// Rays per shot for --formfactor raycast.
+    #[arg(long, default_value_t = 1 << 16)]
+    pub rays: u32,
+    #[command(flatten)]
+    pub method_args: MethodArgs,
     /// Leave out the ambient term (shown by default while unconverged).
     #[arg(long)]
     pub no_ambient: bool,
@@ -70,6 +76,59 @@ pub struct RenderArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// Parameters of the hemicube and hybrid methods, shared by `render` and `formfactor`.
+#[derive(Args, Debug, Clone)]
+pub struct MethodArgs {
+    /// Hemicube resolution: pixels across the top face (hemicube, hybrid).
+    #[arg(long, default_value_t = 256)]
+    pub hemicube_res: u32,
+    /// Keep every hemicube in the same orientation (no random rotation about the normal).
+    #[arg(long)]
+    pub no_hemicube_rotate: bool,
+    /// Hybrid: receivers within K radii of the shooter are computed analytically.
+    #[arg(long, allow_negative_numbers = true, default_value_t = FormFactorParams::default().hybrid_k)]
+    pub hybrid_k: f64,
+    /// Hybrid: receivers expected to cover fewer hemicube pixels than this are analytic.
+    #[arg(long, allow_negative_numbers = true, default_value_t = FormFactorParams::default().hybrid_min_pixels)]
+    pub hybrid_min_pixels: f64,
+}
+
+impl MethodArgs {
+    pub fn check(&self) -> Result<()> {
+        if !(2..=8192).contains(&self.hemicube_res) {
+            bail!("--hemicube-res must be in 2..=8192");
+        }
+        if !(self.hybrid_k.is_finite() && self.hybrid_k >= 0.0) {
+            bail!("--hybrid-k must be a number >= 0");
+        }
+        if !(self.hybrid_min_pixels.is_finite() && self.hybrid_min_pixels >= 0.0) {
+            bail!("--hybrid-min-pixels must be a number >= 0");
+        }
+        Ok(())
+    }
+
+    /// Default parameters with these fields set.
+    pub fn params(&self) -> FormFactorParams {
+        FormFactorParams {
+            hemicube_res: self.hemicube_res,
+            hemicube_rotate: !self.no_hemicube_rotate,
+            hybrid_k: self.hybrid_k,
+            hybrid_min_pixels: self.hybrid_min_pixels,
+            ..Default::default()
+        }
+    }
+}
+
+/// Parses a method name with the library's parser; the message names the flag.
+pub fn parse_method(flag: &str, name: &str) -> Result<FormFactorMethod> {
+    name.parse::<FormFactorMethod>().map_err(|_| {
+        anyhow!(
+            "unknown {flag} '{name}' (available: {})",
+            FormFactorMethod::names()
+        )
+    })
 }
 
 #[derive(Args, Debug)]
@@ -122,14 +181,11 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
     if !(args.exposure.is_finite() && args.exposure > 0.0) {
         bail!("--exposure must be a positive number");
     }
-    let method = FormFactorMethod::parse(&args.formfactor).ok_or_else(|| {
-        let names: Vec<_> = FormFactorMethod::ALL.iter().map(|m| m.name()).collect();
-        anyhow!(
-            "unknown --formfactor '{}' (available: {})",
-            args.formfactor,
-            names.join(", ")
-        )
-    })?;
+    let method = parse_method("--formfactor", &args.formfactor)?;
+    if args.rays == 0 {
+        bail!("--rays must be at least 1");
+    }
+    args.method_args.check()?;
     // Read the reference first so a bad path fails before the work.
     let reference = match &args.reference {
         Some(p) => Some(Image::load_pfm(p)?),
@@ -142,6 +198,8 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
             visibility_rays: args.vis_rays,
             probe_visibility: !args.full_visibility,
             seed: args.seed,
+            rays: args.rays,
+            ..args.method_args.params()
         },
         patch_size: args.patch_size,
         ..Default::default()

@@ -7,8 +7,10 @@ use std::path::Path;
 use glam::DVec3;
 use serde::Deserialize;
 
-use super::contour;
-use super::{FormFactorMethod, FormFactorParams, PolygonSampler, occluded_point_to_polygon};
+use super::{
+    FormFactorMethod, FormFactorParams, PolygonSampler, contour, exact, hemicube, hybrid,
+    montecarlo, occluded_point_to_polygon, raycast,
+};
 use crate::geometry::bvh::TriangleInput;
 use crate::geometry::{Bvh, Rng, polygon};
 
@@ -90,6 +92,11 @@ pub fn load(path: &Path) -> Result<Vec<Case>, CaseError> {
 }
 
 /// Evaluates one case with one method: F from A1 (or the point) to A2.
+///
+/// Point methods (`hemicube`) are averaged over A1 with a fixed 6×6 Gauss–Legendre rule per
+/// triangle of A1 ([`integrate_fixed`]); `raycast` and `montecarlo` spread their
+/// `params.rays` samples over A1 uniformly; `exact` uses the double contour integral (with
+/// occluders: the exact point-to-visible-polygon value integrated adaptively over A1).
 pub fn evaluate(case: &Case, method: FormFactorMethod, params: &FormFactorParams) -> f64 {
     let a2 = to_vecs(&case.a2);
     let occluders: Vec<Vec<DVec3>> = case.occluders.iter().map(|o| to_vecs(o)).collect();
@@ -105,19 +112,167 @@ pub fn evaluate(case: &Case, method: FormFactorMethod, params: &FormFactorParams
             occluded_point_to_polygon(&bvh, p, n, &a2, &sampler, m, false, eps, [u32::MAX; 2], rng)
         }
     };
+    let point = match (case.point, case.point_normal) {
+        (Some(p), Some(n)) => Some((
+            DVec3::from_array(p),
+            DVec3::from_array(n).try_normalize().unwrap_or(DVec3::Z),
+        )),
+        _ => None,
+    };
+    let a1 = to_vecs(&case.a1);
     let mut rng = Rng::new(params.seed, 0);
     match method {
         FormFactorMethod::Contour => {
-            if let (Some(p), Some(n)) = (case.point, case.point_normal) {
-                let n = DVec3::from_array(n).try_normalize().unwrap_or(DVec3::Z);
-                return point_value(DVec3::from_array(p), n, &mut rng);
+            if let Some((p, n)) = point {
+                return point_value(p, n, &mut rng);
             }
-            let a1 = to_vecs(&case.a1);
             // Sampled visibility is noisy: refine a fixed few levels only, not to 1e-10.
             let depth = if occluders.is_empty() { 14 } else { 2 };
             integrate_over(&a1, depth, &mut |p, n| point_value(p, n, &mut rng))
         }
+        FormFactorMethod::Exact => {
+            if let Some((p, n)) = point {
+                return exact::point_to_visible_polygon(p, n, &a2, &occluders);
+            }
+            if occluders.is_empty() {
+                return exact::polygon_to_polygon(&a1, &a2);
+            }
+            integrate_over_with_floor(&a1, params.cubature_depth, 1e-13, &mut |p, n| {
+                exact::point_to_visible_polygon(p, n, &a2, &occluders)
+            })
+        }
+        FormFactorMethod::Hemicube => hemicube_case(point, &a1, &a2, &occluders, params, &mut rng),
+        FormFactorMethod::Raycast => {
+            let mut tris = triangles(&a2, 0);
+            for o in &occluders {
+                tris.extend(triangles(o, 1));
+            }
+            let scene = Bvh::build(&tris);
+            let from = match point {
+                Some((p, n)) => raycast::Origin::Point(p, n),
+                None => raycast::Origin::Polygon(PolygonSampler::new(&a1)),
+            };
+            raycast::hit_fraction(&scene, from, 0, params.rays as u64, eps, &mut rng)
+        }
+        FormFactorMethod::Montecarlo => {
+            let a1_sampler;
+            let receiver = match point {
+                Some((p, n)) => montecarlo::Receiver::Point(p, n),
+                None => {
+                    a1_sampler = PolygonSampler::new(&a1);
+                    montecarlo::Receiver::Polygon(&a1_sampler)
+                }
+            };
+            let blockers = (!occluders.is_empty()).then_some(&bvh);
+            montecarlo::estimate(
+                &receiver,
+                &sampler,
+                polygon::area(&a2),
+                blockers,
+                [u32::MAX; 2],
+                eps,
+                params.rays as u64,
+                &mut rng,
+            )
+        }
+        FormFactorMethod::Hybrid => {
+            let (c1, area1) = match point {
+                Some((p, _)) => (p, 0.0),
+                None => (polygon::centroid(&a1), polygon::area(&a1)),
+            };
+            let omega = hemicube::DeltaTable::new(params.hemicube_res).pixel_solid_angle();
+            // The hemicube sits on A1 (the "shooter"); A2 is what it sees.
+            let n2 = polygon::normal(&a2).unwrap_or(DVec3::Z);
+            let use_analytic = hybrid::analytic(
+                params,
+                omega,
+                false,
+                c1,
+                area1,
+                polygon::centroid(&a2),
+                n2,
+                polygon::area(&a2),
+            );
+            if use_analytic {
+                evaluate(case, FormFactorMethod::Contour, params)
+            } else {
+                evaluate(case, FormFactorMethod::Hemicube, params)
+            }
+        }
     }
+}
+
+fn triangles(poly: &[DVec3], id: u32) -> Vec<TriangleInput> {
+    polygon::triangulate(poly)
+        .into_iter()
+        .map(|t| TriangleInput {
+            vertices: [poly[t[0]], poly[t[1]], poly[t[2]]],
+            id,
+            cull_back: false,
+        })
+        .collect()
+}
+
+fn hemicube_case(
+    point: Option<(DVec3, DVec3)>,
+    a1: &[DVec3],
+    a2: &[DVec3],
+    occluders: &[Vec<DVec3>],
+    params: &FormFactorParams,
+    rng: &mut Rng,
+) -> f64 {
+    let table = hemicube::DeltaTable::new(params.hemicube_res);
+    let scale = crate::geometry::Aabb::from_points(a2.iter()).diagonal();
+    let near = 1e-9 * scale.max(1e-12);
+    let a2_pieces = convex_pieces(a2);
+    let occ_pieces: Vec<Vec<DVec3>> = occluders.iter().flat_map(|o| convex_pieces(o)).collect();
+    let mut at = |p: DVec3, n: DVec3| {
+        let angle = if params.hemicube_rotate {
+            rng.next_f64() * std::f64::consts::TAU
+        } else {
+            0.0
+        };
+        let mut cube = hemicube::Hemicube::new(&table, p, n, angle, near);
+        for piece in &a2_pieces {
+            cube.draw(piece, 0);
+        }
+        for piece in &occ_pieces {
+            cube.draw(piece, hemicube::NONE);
+        }
+        cube.form_factor(0)
+    };
+    match point {
+        Some((p, n)) => at(p, n),
+        None => integrate_fixed(a1, &mut at),
+    }
+}
+
+fn convex_pieces(poly: &[DVec3]) -> Vec<Vec<DVec3>> {
+    if polygon::is_convex(poly) {
+        return vec![poly.to_vec()];
+    }
+    triangles(poly, 0)
+        .into_iter()
+        .map(|t| t.vertices.to_vec())
+        .collect()
+}
+
+/// Area-average of `f` over `a1` with one 6×6 Gauss–Legendre cell per triangle (Duffy map):
+/// 36 evaluations per triangle, for the point methods that are too costly to refine.
+pub fn integrate_fixed(a1: &[DVec3], f: &mut dyn FnMut(DVec3, DVec3) -> f64) -> f64 {
+    let n = polygon::normal(a1).unwrap_or(DVec3::Z);
+    let total_area = polygon::area(a1);
+    if total_area <= 0.0 {
+        return 0.0;
+    }
+    let mut sum = 0.0;
+    for t in polygon::triangulate(a1) {
+        let (a, b, c) = (a1[t[0]], a1[t[1]], a1[t[2]]);
+        let jac = 2.0 * polygon::area(&[a, b, c]);
+        let mut g = |u: f64, v: f64| f(a + (b - a) * u + (c - b) * (u * v), n) * u * jac;
+        sum += cell(&mut g, 0.0, 0.0, 1.0);
+    }
+    sum / total_area
 }
 
 fn occluder_bvh(occluders: &[Vec<DVec3>]) -> Bvh {
@@ -150,6 +305,17 @@ const GL: [(f64, f64); 6] = [
 /// four children differ by more than `1e-10 × (first estimate) × (cell area)`, so the
 /// accepted cells' differences add up to at most 1e-10 of the integral).
 pub fn integrate_over(a1: &[DVec3], max_depth: u32, f: &mut dyn FnMut(DVec3, DVec3) -> f64) -> f64 {
+    integrate_over_with_floor(a1, max_depth, 0.0, f)
+}
+
+/// [`integrate_over`] that also accepts a cell whose refinement changes the area-average by
+/// less than `floor` (absolute), so an integrand that is zero on a cell stops refining.
+pub fn integrate_over_with_floor(
+    a1: &[DVec3],
+    max_depth: u32,
+    floor: f64,
+    f: &mut dyn FnMut(DVec3, DVec3) -> f64,
+) -> f64 {
     let n = polygon::normal(a1).unwrap_or(DVec3::Z);
     let total_area = polygon::area(a1);
     let mut sum = 0.0;
@@ -159,7 +325,7 @@ pub fn integrate_over(a1: &[DVec3], max_depth: u32, f: &mut dyn FnMut(DVec3, DVe
         // Duffy: (u, v) ∈ [0,1]² → a + u(b − a) + uv(c − b), Jacobian u·jac.
         let mut g = |u: f64, v: f64| f(a + (b - a) * u + (c - b) * (u * v), n) * u * jac;
         let first = cell(&mut g, 0.0, 0.0, 1.0);
-        let tol = 1e-10 * first.abs().max(1e-300);
+        let tol = (1e-10 * first.abs()).max(floor * jac).max(1e-300);
         sum += adapt(&mut g, 0.0, 0.0, 1.0, first, tol, max_depth);
     }
     sum / total_area

@@ -12,6 +12,11 @@
 
 pub mod cases;
 pub mod contour;
+pub mod exact;
+pub mod hemicube;
+pub mod hybrid;
+pub mod montecarlo;
+pub mod raycast;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -24,35 +29,104 @@ use crate::geometry::{Bvh, Ray, Rng, polygon};
 use crate::mesh::{Mesh, PatchId};
 use crate::scene::Scene;
 
-/// Which method computes form factors.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+/// Which method computes form factors. Parsed from its [`name`](Self::name) by
+/// [`FromStr`](std::str::FromStr) and by clap (`ValueEnum`), so every command line shares
+/// one parser and one list.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum)]
 pub enum FormFactorMethod {
     /// Exact point-to-polygon contour formula × stratified visibility.
     Contour,
+    /// Exact polygon-to-polygon double contour integral (cases); as a solver row, the
+    /// element's own polygon against the patch, × stratified visibility.
+    Exact,
+    /// Item-buffer hemicube at the shooter's centroid.
+    Hemicube,
+    /// Cosine-weighted rays from the shooter against the scene.
+    Raycast,
+    /// Random point pairs on both polygons, with visibility.
+    Montecarlo,
+    /// Analytic for lights and near or small receivers, hemicube for the rest.
+    Hybrid,
 }
 
 impl FormFactorMethod {
-    pub const ALL: &'static [FormFactorMethod] = &[FormFactorMethod::Contour];
+    pub const ALL: &'static [FormFactorMethod] = &[
+        FormFactorMethod::Contour,
+        FormFactorMethod::Exact,
+        FormFactorMethod::Hemicube,
+        FormFactorMethod::Raycast,
+        FormFactorMethod::Montecarlo,
+        FormFactorMethod::Hybrid,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             FormFactorMethod::Contour => "contour",
+            FormFactorMethod::Exact => "exact",
+            FormFactorMethod::Hemicube => "hemicube",
+            FormFactorMethod::Raycast => "raycast",
+            FormFactorMethod::Montecarlo => "montecarlo",
+            FormFactorMethod::Hybrid => "hybrid",
         }
     }
 
     pub fn parse(s: &str) -> Option<FormFactorMethod> {
         Self::ALL.iter().copied().find(|m| m.name() == s)
     }
+
+    /// The names, comma-separated (for messages).
+    pub fn names() -> String {
+        Self::ALL
+            .iter()
+            .map(|m| m.name())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+impl std::fmt::Display for FormFactorMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// An unknown method name.
+#[derive(Debug, thiserror::Error)]
+#[error("unknown form-factor method '{0}' (available: {names})", names = FormFactorMethod::names())]
+pub struct UnknownMethod(pub String);
+
+impl std::str::FromStr for FormFactorMethod {
+    type Err = UnknownMethod;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::parse(s).ok_or_else(|| UnknownMethod(s.to_string()))
+    }
 }
 
 /// Tunables shared by all methods.
 #[derive(Clone, Debug)]
 pub struct FormFactorParams {
-    /// Shadow rays per receiver–patch pair (rounded to a square, stratified).
+    /// Shadow rays per receiver–patch pair (rounded to a square, stratified); for
+    /// `montecarlo` rows, point pairs per receiving element.
     pub visibility_rays: u32,
     /// Probe with 4 rays first for non-emitting shooters (see [`visibility_fraction`]).
     pub probe_visibility: bool,
     pub seed: u64,
+    /// Hemicube resolution: pixels across the top face (the sides are half as tall).
+    pub hemicube_res: u32,
+    /// Rotate each hemicube by a random angle about the normal (breaks aliasing patterns).
+    pub hemicube_rotate: bool,
+    /// Rays per `raycast` row (from the shooting patch), and samples per case for the
+    /// sampling methods (`raycast` rays, `montecarlo` point pairs).
+    pub rays: u32,
+    /// Refinement levels of the adaptive cubature over A1 for `exact` cases with occluders
+    /// (the integrand has kinks along penumbra boundaries, so its 1e-10 tolerance is not
+    /// reached there; each level quarters the cells near the kinks).
+    pub cubature_depth: u32,
+    /// `hybrid`: a receiver closer than `hybrid_k · √(A_shooter/π)` is computed analytically.
+    pub hybrid_k: f64,
+    /// `hybrid`: a receiver expected to cover fewer hemicube pixels than this is computed
+    /// analytically too (aliasing of small or far patches).
+    pub hybrid_min_pixels: f64,
 }
 
 impl Default for FormFactorParams {
@@ -61,6 +135,12 @@ impl Default for FormFactorParams {
             visibility_rays: 16,
             probe_visibility: true,
             seed: 1,
+            hemicube_res: 256,
+            hemicube_rotate: true,
+            rays: 1 << 16,
+            cubature_depth: 5,
+            hybrid_k: 5.0,
+            hybrid_min_pixels: 64.0,
         }
     }
 }
@@ -195,8 +275,63 @@ fn sampled_visibility(
     visible as f64 / (m * m) as f64
 }
 
-fn side(rays: u32) -> u32 {
+pub(crate) fn side(rays: u32) -> u32 {
     ((rays.max(1) as f64).sqrt().round() as u32).max(1)
+}
+
+/// Whether a whole receiving patch sees the whole shooting patch: both lie strictly in
+/// front of each other and 4 × 4 rays between points near the receiver's corners and
+/// stratified points on the shooter, plus centre to centre, all arrive. Then every element
+/// of the receiver skips its own shadow rays (a blocker that slips between these 17 rays is
+/// missed, as with the per-element probe).
+pub(crate) fn patch_pair_unblocked(
+    ctx: &RowContext,
+    receiver: &crate::mesh::Patch,
+    shooter: &crate::mesh::Patch,
+    shooter_id: PatchId,
+    receiver_index: usize,
+    ignore: [u32; 2],
+) -> bool {
+    let eps = ctx.epsilon;
+    let in_front = |points: &[DVec3], of: &crate::mesh::Patch| {
+        points
+            .iter()
+            .all(|p| (*p - of.centroid).dot(of.normal) > 10.0 * eps)
+    };
+    if !in_front(&shooter.polygon, receiver) || !in_front(&receiver.polygon, shooter) {
+        return false;
+    }
+    let mut rng = Rng::new(
+        hash_seed(&[
+            ctx.params.seed,
+            shooter_id.0 as u64,
+            receiver_index as u64,
+            0x5a4f7,
+        ]),
+        1,
+    );
+    let sampler = PolygonSampler::new(&shooter.polygon);
+    let lift = |p: DVec3, n: DVec3| p + n * eps;
+    let blocked = |from: DVec3, to: DVec3| {
+        let (a, b) = (lift(from, receiver.normal), lift(to, shooter.normal));
+        ctx.bvh
+            .any_hit_except(&Ray::new(a, b - a), 1e-9, 1.0 - 1e-9, ignore)
+    };
+    if blocked(receiver.centroid, shooter.centroid) {
+        return false;
+    }
+    for corner in &receiver.polygon {
+        // A little inside the corner, off the neighbouring faces.
+        let from = *corner + (receiver.centroid - *corner) * 0.01;
+        for k in 0..4u32 {
+            let u1 = ((k % 2) as f64 + rng.next_f64()) / 2.0;
+            let u2 = ((k / 2) as f64 + rng.next_f64()) / 2.0;
+            if blocked(from, sampler.point(u1, u2)) {
+                return false;
+            }
+        }
+    }
+    true
 }
 
 /// Lambert's point-to-polygon form factor times the visible fraction of stratified shadow
@@ -241,19 +376,16 @@ pub fn compute_row(
 ) -> bool {
     match method {
         FormFactorMethod::Contour => contour_row(ctx, shooter, out, cancel),
+        FormFactorMethod::Exact => exact::row(ctx, shooter, out, cancel),
+        FormFactorMethod::Hemicube => hemicube::row(ctx, shooter, out, cancel),
+        FormFactorMethod::Raycast => raycast::row(ctx, shooter, out, cancel),
+        FormFactorMethod::Montecarlo => montecarlo::row(ctx, shooter, out, cancel),
+        FormFactorMethod::Hybrid => hybrid::row(ctx, shooter, out, cancel),
     }
 }
 
-fn contour_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicBool) -> bool {
-    let mesh = ctx.mesh;
-    let patch = mesh.patch(shooter);
-    let sampler = PolygonSampler::new(&patch.polygon);
-    let m = side(ctx.params.visibility_rays);
-    let seed = ctx.params.seed;
-    // Light sources always get every ray: their shadows matter most.
-    let emitter = ctx.scene.materials[patch.material.0 as usize].is_emitter();
-    let probe = ctx.params.probe_visibility && !emitter;
-    // One slice of `out` per receiving patch (a patch's elements are contiguous).
+/// Splits a row into one slice per receiving patch (a patch's elements are contiguous).
+pub(crate) fn patch_slices<'o>(mesh: &Mesh, out: &'o mut [f32]) -> Vec<(usize, &'o mut [f32])> {
     let mut slices = Vec::with_capacity(mesh.patches.len());
     let mut rest = out;
     for (k, r) in mesh.patches.iter().enumerate() {
@@ -262,84 +394,131 @@ fn contour_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &Ato
         rest = tail;
     }
     slices
+}
+
+/// What the analytic rows share for one shot.
+pub(crate) struct ShotSetup {
+    pub sampler: PolygonSampler,
+    pub m: u32,
+    pub probe: bool,
+}
+
+impl ShotSetup {
+    pub fn new(ctx: &RowContext, shooter: PatchId) -> Self {
+        let patch = ctx.mesh.patch(shooter);
+        // Light sources always get every ray: their shadows matter most.
+        let emitter = ctx.scene.materials[patch.material.0 as usize].is_emitter();
+        Self {
+            sampler: PolygonSampler::new(&patch.polygon),
+            m: side(ctx.params.visibility_rays),
+            probe: ctx.params.probe_visibility && !emitter,
+        }
+    }
+}
+
+/// The contour method for the elements of receiving patch `k` (`slice`).
+pub(crate) fn contour_patch(
+    ctx: &RowContext,
+    shooter: PatchId,
+    setup: &ShotSetup,
+    k: usize,
+    slice: &mut [f32],
+) {
+    let mesh = ctx.mesh;
+    let patch = mesh.patch(shooter);
+    let receiver = &mesh.patches[k];
+    let first = receiver.elements.start as usize;
+    // Behind the shooter, or the shooter behind it (coplanar patches included).
+    let behind = |poly: &[DVec3], of: &crate::mesh::Patch| {
+        poly.iter()
+            .all(|v| (*v - of.centroid).dot(of.normal) <= 0.0)
+    };
+    if k == shooter.0 as usize
+        || behind(&receiver.polygon, patch)
+        || behind(&patch.polygon, receiver)
+    {
+        slice.fill(0.0);
+        return;
+    }
+    // BVH ids are input faces; a planar face cannot block rays between its points.
+    let ignore = [receiver.face as u32, patch.face as u32];
+    // Triangles in the pair's bounding box first; the hull only when there are some.
+    let mut candidates = Vec::new();
+    let bbox = Shaft::bounding_box(&receiver.polygon, &patch.polygon, ctx.epsilon);
+    let culled = ctx
+        .bvh
+        .collect_in_shaft(&bbox, ignore, MAX_SHAFT_CANDIDATES, &mut candidates);
+    if culled && !candidates.is_empty() {
+        let hull = Shaft::between(&receiver.polygon, &patch.polygon, ctx.epsilon);
+        candidates.retain(|&t| !hull.excludes_triangle(ctx.bvh.stored_triangle(t)));
+    }
+    for (i, f) in slice.iter_mut().enumerate() {
+        let j = first + i;
+        let e = &mesh.elements[j];
+        let analytic = contour::point_to_polygon_with_normal(
+            e.centroid,
+            e.normal,
+            &patch.polygon,
+            patch.normal,
+        );
+        if analytic <= 0.0 || (culled && candidates.is_empty()) {
+            *f = analytic.max(0.0) as f32;
+            continue;
+        }
+        let mut rng = Rng::new(hash_seed(&[ctx.params.seed, shooter.0 as u64, j as u64]), 0);
+        let v = if culled {
+            element_visibility(
+                ctx,
+                e.centroid,
+                e.normal,
+                patch,
+                &setup.sampler,
+                setup.m,
+                setup.probe,
+                &candidates,
+                &mut rng,
+            )
+        } else {
+            let above = patch
+                .polygon
+                .iter()
+                .all(|v| (*v - e.centroid).dot(e.normal) >= 0.0);
+            let part;
+            let target = if above {
+                &setup.sampler
+            } else {
+                part = PolygonSampler::new(&polygon::clip_to_halfspace(
+                    &patch.polygon,
+                    e.centroid,
+                    e.normal,
+                ));
+                &part
+            };
+            visibility_fraction(
+                ctx.bvh,
+                e.centroid,
+                e.normal,
+                target,
+                setup.m,
+                setup.probe,
+                ctx.epsilon,
+                ignore,
+                &mut rng,
+            )
+        };
+        *f = (analytic * v) as f32;
+    }
+}
+
+fn contour_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicBool) -> bool {
+    let setup = ShotSetup::new(ctx, shooter);
+    patch_slices(ctx.mesh, out)
         .into_par_iter()
-        .for_each_init(Vec::new, |candidates, (k, slice)| {
+        .for_each(|(k, slice)| {
             if cancel.load(Ordering::Relaxed) {
                 return;
             }
-            let receiver = &mesh.patches[k];
-            let first = receiver.elements.start as usize;
-            // Behind the shooter, or the shooter behind it (coplanar patches included).
-            let behind = |poly: &[DVec3], of: &crate::mesh::Patch| {
-                poly.iter()
-                    .all(|v| (*v - of.centroid).dot(of.normal) <= 0.0)
-            };
-            if k == shooter.0 as usize
-                || behind(&receiver.polygon, patch)
-                || behind(&patch.polygon, receiver)
-            {
-                slice.fill(0.0);
-                return;
-            }
-            // BVH ids are input faces; a planar face cannot block rays between its points.
-            let ignore = [receiver.face as u32, patch.face as u32];
-            // Triangles in the pair's bounding box first; the hull only when there are some.
-            let bbox = Shaft::bounding_box(&receiver.polygon, &patch.polygon, ctx.epsilon);
-            let culled = ctx
-                .bvh
-                .collect_in_shaft(&bbox, ignore, MAX_SHAFT_CANDIDATES, candidates);
-            if culled && !candidates.is_empty() {
-                let hull = Shaft::between(&receiver.polygon, &patch.polygon, ctx.epsilon);
-                candidates.retain(|&t| !hull.excludes_triangle(ctx.bvh.stored_triangle(t)));
-            }
-            for (i, f) in slice.iter_mut().enumerate() {
-                let j = first + i;
-                let e = &mesh.elements[j];
-                let analytic = contour::point_to_polygon_with_normal(
-                    e.centroid,
-                    e.normal,
-                    &patch.polygon,
-                    patch.normal,
-                );
-                if analytic <= 0.0 || (culled && candidates.is_empty()) {
-                    *f = analytic.max(0.0) as f32;
-                    continue;
-                }
-                let mut rng = Rng::new(hash_seed(&[seed, shooter.0 as u64, j as u64]), 0);
-                let v = if culled {
-                    element_visibility(
-                        ctx, e.centroid, e.normal, patch, &sampler, m, probe, candidates, &mut rng,
-                    )
-                } else {
-                    let above = patch
-                        .polygon
-                        .iter()
-                        .all(|v| (*v - e.centroid).dot(e.normal) >= 0.0);
-                    let part;
-                    let target = if above {
-                        &sampler
-                    } else {
-                        part = PolygonSampler::new(&polygon::clip_to_halfspace(
-                            &patch.polygon,
-                            e.centroid,
-                            e.normal,
-                        ));
-                        &part
-                    };
-                    visibility_fraction(
-                        ctx.bvh,
-                        e.centroid,
-                        e.normal,
-                        target,
-                        m,
-                        probe,
-                        ctx.epsilon,
-                        ignore,
-                        &mut rng,
-                    )
-                };
-                *f = (analytic * v) as f32;
-            }
+            contour_patch(ctx, shooter, &setup, k, slice);
         });
     !cancel.load(Ordering::Relaxed)
 }

@@ -1,0 +1,509 @@
+//! The hemicube (Cohen & Greenberg 1985, "The hemi-cube: a radiosity solution for complex
+//! environments"): an item buffer on the five faces of a half cube around a point, each pixel
+//! holding the id of the nearest polygon seen through it (z-buffer), weighted by its
+//! precomputed delta form factor — top face (x, y, 1): `ΔA / (π (x² + y² + 1)²)`, side face at
+//! height z: `z ΔA / (π (y² + z² + 1)²)` — so that `F(point → polygon) ≈ Σ` over its pixels.
+//!
+//! This is a CPU rasteriser: polygons are clipped in homogeneous coordinates against the near
+//! plane and the face's frustum, then scan-converted (pixel centres) with `1/depth` interpolated;
+//! each hemicube may be rotated by a random angle about the normal (Wallace et al. 1989 and
+//! Baum et al. 1989 note the aliasing a fixed orientation gives).
+//!
+//! Known error: (1) aliasing — a polygon covering few pixels is rounded to whole pixels, so a
+//! small or far receiver is over- or under-estimated by up to one pixel's delta per boundary
+//! pixel (the reference catalogue notes a 0.05-wide square at distance 1–2 missed entirely
+//! 40 % of the time at 32×32; median error 7 % at 128, 2 % at 256); (2) the point
+//! approximation — the shooter is a point at its centroid, wrong for receivers closer than a
+//! few shooter radii; (3) the delta form factors are the midpoint rule, so they sum to
+//! `1 − O(res⁻²)` (measured in the tests).
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::RowContext;
+use crate::geometry::Rng;
+use crate::geometry::sampling::{basis, hash_seed};
+use crate::mesh::PatchId;
+
+/// Id of pixels that see nothing, or a polygon that only blocks.
+pub const NONE: u32 = u32::MAX;
+
+/// Delta form factors for one resolution.
+#[derive(Clone, Debug)]
+pub struct DeltaTable {
+    res: usize,
+    half: usize,
+    top: Vec<f64>,
+    side: Vec<f64>,
+}
+
+impl DeltaTable {
+    /// `res` pixels across the top face (rounded up to even, at least 2); the sides are
+    /// `res/2` pixels tall.
+    pub fn new(res: u32) -> Self {
+        let res = (res.max(2) as usize).div_ceil(2) * 2;
+        let half = res / 2;
+        let d = 2.0 / res as f64;
+        let da = d * d;
+        let pi = std::f64::consts::PI;
+        let mut top = Vec::with_capacity(res * res);
+        for j in 0..res {
+            let y = -1.0 + (j as f64 + 0.5) * d;
+            for i in 0..res {
+                let x = -1.0 + (i as f64 + 0.5) * d;
+                let q = x * x + y * y + 1.0;
+                top.push(da / (pi * q * q));
+            }
+        }
+        let mut side = Vec::with_capacity(res * half);
+        for j in 0..half {
+            let z = (j as f64 + 0.5) * d;
+            for i in 0..res {
+                let y = -1.0 + (i as f64 + 0.5) * d;
+                let q = y * y + z * z + 1.0;
+                side.push(z * da / (pi * q * q));
+            }
+        }
+        Self {
+            res,
+            half,
+            top,
+            side,
+        }
+    }
+
+    pub fn res(&self) -> usize {
+        self.res
+    }
+
+    /// Sum over the whole hemicube (1 in the limit).
+    pub fn sum(&self) -> f64 {
+        self.top.iter().sum::<f64>() + 4.0 * self.side.iter().sum::<f64>()
+    }
+
+    /// Solid angle of a pixel at the centre of the top face (steradians).
+    pub fn pixel_solid_angle(&self) -> f64 {
+        let d = 2.0 / self.res as f64;
+        d * d
+    }
+}
+
+/// One face's buffers.
+struct Face {
+    ids: Vec<u32>,
+    /// 1/depth (larger is nearer); 0 = empty.
+    inv_depth: Vec<f64>,
+    rows: usize,
+}
+
+/// A hemicube at a point: draw polygons, then read the form factor of each id.
+pub struct Hemicube<'t> {
+    table: &'t DeltaTable,
+    origin: DVec3,
+    axes: [DVec3; 3],
+    near: f64,
+    faces: Vec<Face>,
+}
+
+/// A polygon's vertices in hemicube-local coordinates (u, v, w): w along the normal.
+pub type Local = [f64; 3];
+
+impl<'t> Hemicube<'t> {
+    /// A hemicube at `origin` looking along unit `normal`, rotated by `angle` about it;
+    /// geometry nearer than `near` along a face's axis is clipped.
+    pub fn new(table: &'t DeltaTable, origin: DVec3, normal: DVec3, angle: f64, near: f64) -> Self {
+        let (t, b) = basis(normal);
+        let (s, c) = angle.sin_cos();
+        let axes = [t * c + b * s, b * c - t * s, normal];
+        let res = table.res;
+        let faces = (0..5)
+            .map(|f| {
+                let rows = if f == 0 { res } else { table.half };
+                Face {
+                    ids: vec![NONE; res * rows],
+                    inv_depth: vec![0.0; res * rows],
+                    rows,
+                }
+            })
+            .collect();
+        Self {
+            table,
+            origin,
+            axes,
+            near: near.max(1e-300),
+            faces,
+        }
+    }
+
+    /// Local coordinates of a point.
+    pub fn local(&self, p: DVec3) -> Local {
+        let d = p - self.origin;
+        [
+            d.dot(self.axes[0]),
+            d.dot(self.axes[1]),
+            d.dot(self.axes[2]),
+        ]
+    }
+
+    /// Draws a convex polygon with `id` on every face (depth-tested).
+    pub fn draw(&mut self, poly: &[DVec3], id: u32) {
+        let local: Vec<Local> = poly.iter().map(|p| self.local(*p)).collect();
+        self.draw_local(&local, id);
+    }
+
+    /// [`draw`](Self::draw) with the vertices already in local coordinates.
+    pub fn draw_local(&mut self, local: &[Local], id: u32) {
+        if local.iter().all(|p| p[2] <= 0.0) {
+            return; // Entirely below the horizon.
+        }
+        let (res, near) = (self.table.res, self.near);
+        for (f, face) in self.faces.iter_mut().enumerate() {
+            draw_face(face, f, res, near, local, id);
+        }
+    }
+
+    /// Draws many convex polygons (local coordinates, with ids), the five faces in parallel.
+    pub fn draw_many(&mut self, polys: &[(Vec<Local>, u32)]) {
+        let (res, near) = (self.table.res, self.near);
+        self.faces.par_iter_mut().enumerate().for_each(|(f, face)| {
+            for (local, id) in polys {
+                if local.iter().any(|p| p[2] > 0.0) {
+                    draw_face(face, f, res, near, local, *id);
+                }
+            }
+        });
+    }
+
+    /// Adds each pixel's delta form factor to `out[id]` (ids ≥ `out.len()` and
+    /// [`NONE`] are skipped).
+    pub fn accumulate(&self, out: &mut [f64]) {
+        for (f, face) in self.faces.iter().enumerate() {
+            let deltas = if f == 0 {
+                &self.table.top
+            } else {
+                &self.table.side
+            };
+            for (id, d) in face.ids.iter().zip(deltas) {
+                if let Some(o) = out.get_mut(*id as usize) {
+                    *o += d;
+                }
+            }
+        }
+    }
+
+    /// Form factor of one id.
+    pub fn form_factor(&self, id: u32) -> f64 {
+        let mut sum = 0.0;
+        for (f, face) in self.faces.iter().enumerate() {
+            let deltas = if f == 0 {
+                &self.table.top
+            } else {
+                &self.table.side
+            };
+            for (i, d) in face.ids.iter().zip(deltas) {
+                if *i == id {
+                    sum += d;
+                }
+            }
+        }
+        sum
+    }
+}
+
+/// The random rotation of the hemicube of one shot (0 when rotation is off).
+pub fn shot_angle(ctx: &RowContext, shooter: PatchId) -> f64 {
+    if !ctx.params.hemicube_rotate {
+        return 0.0;
+    }
+    let mut rng = Rng::new(hash_seed(&[ctx.params.seed, shooter.0 as u64, 0x4e3c]), 7);
+    rng.next_f64() * std::f64::consts::TAU
+}
+
+/// `F_ij` from a hemicube at the shooter's centroid to every element `j` (indexed like
+/// `mesh.elements`). Elements facing away block (one-sided scenes) or are skipped (their
+/// other side is an element of its own in two-sided scenes); the shooter's own elements are
+/// not drawn. Returns `None` when cancelled.
+pub fn element_values(
+    ctx: &RowContext,
+    shooter: PatchId,
+    table: &DeltaTable,
+    cancel: &AtomicBool,
+) -> Option<Vec<f64>> {
+    let mesh = ctx.mesh;
+    let patch = mesh.patch(shooter);
+    let angle = shot_angle(ctx, shooter);
+    let mut cube = Hemicube::new(table, patch.centroid, patch.normal, angle, ctx.epsilon);
+    let polys: Vec<(Vec<Local>, u32)> = mesh
+        .elements
+        .iter()
+        .enumerate()
+        .filter_map(|(j, e)| {
+            if e.patch == shooter {
+                return None;
+            }
+            let facing = (patch.centroid - e.centroid).dot(e.normal);
+            let id = if facing > ctx.epsilon {
+                j as u32
+            } else if ctx.scene.two_sided || facing > -ctx.epsilon {
+                return None;
+            } else {
+                NONE
+            };
+            let local: Vec<Local> = e.corners().iter().map(|c| cube.local(*c)).collect();
+            Some((local, id))
+        })
+        .collect();
+    if cancel.load(Ordering::Relaxed) {
+        return None;
+    }
+    cube.draw_many(&polys);
+    let mut values = vec![0.0; mesh.elements.len()];
+    cube.accumulate(&mut values);
+    Some(values)
+}
+
+/// `out[j] = F_ji = F_ij A_i / A_j` from one hemicube at the shooter's centroid.
+pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicBool) -> bool {
+    let table = DeltaTable::new(ctx.params.hemicube_res);
+    let Some(values) = element_values(ctx, shooter, &table, cancel) else {
+        return false;
+    };
+    let area = ctx.mesh.patch(shooter).area;
+    for ((o, v), e) in out.iter_mut().zip(&values).zip(&ctx.mesh.elements) {
+        *o = if e.area > 0.0 {
+            (v * area / e.area) as f32
+        } else {
+            0.0
+        };
+    }
+    !cancel.load(Ordering::Relaxed)
+}
+
+/// Face coordinates (X, Y, D) of a local point: screen = (X/D, Y/D).
+fn to_face(f: usize, p: &Local) -> [f64; 3] {
+    let [u, v, w] = *p;
+    match f {
+        0 => [u, v, w],
+        1 => [v, w, u],
+        2 => [-v, w, -u],
+        3 => [-u, w, v],
+        _ => [u, w, -v],
+    }
+}
+
+/// Sutherland–Hodgman against `a·X + b·Y + c·D ≥ 0` in face coordinates.
+fn clip(poly: &[[f64; 3]], plane: [f64; 3], out: &mut Vec<[f64; 3]>) {
+    out.clear();
+    let k = poly.len();
+    let dist = |p: &[f64; 3]| plane[0] * p[0] + plane[1] * p[1] + plane[2] * p[2];
+    for i in 0..k {
+        let (a, b) = (poly[i], poly[(i + 1) % k]);
+        let (da, db) = (dist(&a), dist(&b));
+        if da >= 0.0 {
+            out.push(a);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            let t = da / (da - db);
+            out.push([
+                a[0] + (b[0] - a[0]) * t,
+                a[1] + (b[1] - a[1]) * t,
+                a[2] + (b[2] - a[2]) * t,
+            ]);
+        }
+    }
+}
+
+fn draw_face(face: &mut Face, f: usize, res: usize, near: f64, local: &[Local], id: u32) {
+    let ylo = if f == 0 { -1.0 } else { 0.0 };
+    let pts: Vec<[f64; 3]> = local.iter().map(|p| to_face(f, p)).collect();
+    // Frustum planes (a, b, c): a X + b Y + c D ≥ 0.
+    let planes = [
+        [1.0, 0.0, 1.0],  // X ≥ −D
+        [-1.0, 0.0, 1.0], // X ≤ D
+        [0.0, -1.0, 1.0], // Y ≤ D
+        [0.0, 1.0, -ylo], // Y ≥ ylo·D
+    ];
+    // Quick rejection: every vertex outside one plane (or in front of the near plane).
+    if pts.iter().all(|p| p[2] < near) {
+        return;
+    }
+    for pl in &planes {
+        if pts
+            .iter()
+            .all(|p| pl[0] * p[0] + pl[1] * p[1] + pl[2] * p[2] < 0.0)
+        {
+            return;
+        }
+    }
+    // Plane of the polygon in face coordinates: n·P = c; then 1/D = n·(sx, sy, 1)/c.
+    let mut n = [0.0f64; 3];
+    let k = pts.len();
+    for i in 0..k {
+        let (a, b) = (pts[i], pts[(i + 1) % k]);
+        n[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        n[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        n[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    let c = n[0] * pts[0][0] + n[1] * pts[0][1] + n[2] * pts[0][2];
+    let nlen = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    let dist0 = (pts[0][0].powi(2) + pts[0][1].powi(2) + pts[0][2].powi(2)).sqrt();
+    if nlen == 0.0 || c.abs() <= 1e-12 * nlen * dist0 {
+        return; // Edge-on: covers no area.
+    }
+    let mut a: Vec<[f64; 3]> = pts;
+    let mut b = Vec::with_capacity(k + 8);
+    // Near plane: D ≥ near.
+    {
+        let mut tmp = Vec::with_capacity(k + 2);
+        let shifted: Vec<[f64; 3]> = a.iter().map(|p| [p[0], p[1], p[2] - near]).collect();
+        clip(&shifted, [0.0, 0.0, 1.0], &mut tmp);
+        a = tmp.iter().map(|p| [p[0], p[1], p[2] + near]).collect();
+    }
+    for pl in &planes {
+        if a.len() < 3 {
+            return;
+        }
+        clip(&a, *pl, &mut b);
+        std::mem::swap(&mut a, &mut b);
+    }
+    if a.len() < 3 {
+        return;
+    }
+    // Pixel coordinates: px = (sx + 1)/2 · res, py = (sy − ylo) · res/2.
+    let scale = res as f64 * 0.5;
+    let screen: Vec<(f64, f64)> = a
+        .iter()
+        .map(|p| ((p[0] / p[2] + 1.0) * scale, (p[1] / p[2] - ylo) * scale))
+        .collect();
+    let m = screen.len();
+    let mut area2 = 0.0;
+    for i in 0..m {
+        let (p, q) = (screen[i], screen[(i + 1) % m]);
+        area2 += p.0 * q.1 - q.0 * p.1;
+    }
+    if area2 == 0.0 {
+        return;
+    }
+    let orient = area2.signum();
+    // Edge functions E(x, y) = A x + B y + C ≥ 0 inside.
+    let edges: Vec<(f64, f64, f64)> = (0..m)
+        .map(|i| {
+            let (p, q) = (screen[i], screen[(i + 1) % m]);
+            let ea = -(q.1 - p.1) * orient;
+            let eb = (q.0 - p.0) * orient;
+            (ea, eb, -(ea * p.0 + eb * p.1))
+        })
+        .collect();
+    let (mut ymin, mut ymax) = (f64::INFINITY, f64::NEG_INFINITY);
+    for s in &screen {
+        ymin = ymin.min(s.1);
+        ymax = ymax.max(s.1);
+    }
+    let rows = face.rows;
+    let y0 = ((ymin - 0.5).ceil().max(0.0)) as usize;
+    let y1 = ((ymax - 0.5).floor()).min(rows as f64 - 1.0);
+    if y1 < 0.0 {
+        return;
+    }
+    let y1 = y1 as usize;
+    // 1/D as a function of pixel coordinates.
+    let inv_c = 1.0 / c;
+    for py in y0..=y1 {
+        let yc = py as f64 + 0.5;
+        let (mut xl, mut xr) = (0.0f64, res as f64);
+        let mut empty = false;
+        for &(ea, eb, ec) in &edges {
+            let rest = eb * yc + ec;
+            if ea > 0.0 {
+                xl = xl.max(-rest / ea);
+            } else if ea < 0.0 {
+                xr = xr.min(-rest / ea);
+            } else if rest < 0.0 {
+                empty = true;
+                break;
+            }
+        }
+        if empty || xl > xr {
+            continue;
+        }
+        let x0 = (xl - 0.5).ceil().max(0.0) as usize;
+        let x1 = (xr - 0.5).floor().min(res as f64 - 1.0);
+        if x1 < 0.0 {
+            continue;
+        }
+        let x1 = x1 as usize;
+        let sy = yc / scale + ylo;
+        let row = py * res;
+        for px in x0..=x1 {
+            let sx = (px as f64 + 0.5) / scale - 1.0;
+            let z = (n[0] * sx + n[1] * sy + n[2]) * inv_c;
+            let i = row + px;
+            if z > face.inv_depth[i] {
+                face.inv_depth[i] = z;
+                face.ids[i] = id;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::formfactor::contour;
+
+    #[test]
+    fn delta_form_factors_sum_to_one_with_second_order_error() {
+        let e64 = (DeltaTable::new(64).sum() - 1.0).abs();
+        let e256 = (DeltaTable::new(256).sum() - 1.0).abs();
+        eprintln!("|Σ − 1|: {e64:.3e} at 64, {e256:.3e} at 256");
+        assert!(e64 < 1e-3, "{e64}");
+        // Midpoint rule: 4× the resolution, about 16× smaller.
+        assert!(e256 < e64 / 12.0 && e256 < 1e-4, "{e256} vs {e64}");
+    }
+
+    #[test]
+    fn a_large_square_overhead_matches_lambert() {
+        let table = DeltaTable::new(256);
+        let sq = [
+            DVec3::new(-0.3, -0.4, 1.0),
+            DVec3::new(-0.3, 0.9, 1.0),
+            DVec3::new(0.8, 0.9, 1.0),
+            DVec3::new(0.8, -0.4, 1.0),
+        ];
+        let exact = contour::point_to_polygon(DVec3::ZERO, DVec3::Z, &sq);
+        for angle in [0.0, 0.3, 1.1] {
+            let mut h = Hemicube::new(&table, DVec3::ZERO, DVec3::Z, angle, 1e-9);
+            h.draw(&sq, 0);
+            let f = h.form_factor(0);
+            // Boundary pixels: perimeter ≈ 4.8 units / pixel size 2/256, each ≤ its delta.
+            assert!(
+                (f - exact).abs() < 0.01 * exact,
+                "angle {angle}: {f} vs {exact}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_nearer_polygon_wins_the_pixels() {
+        let table = DeltaTable::new(64);
+        let big = |z: f64| {
+            [
+                DVec3::new(-5.0, -5.0, z),
+                DVec3::new(-5.0, 5.0, z),
+                DVec3::new(5.0, 5.0, z),
+                DVec3::new(5.0, -5.0, z),
+            ]
+        };
+        let mut h = Hemicube::new(&table, DVec3::ZERO, DVec3::Z, 0.0, 1e-9);
+        h.draw(&big(2.0), 1);
+        h.draw(&big(1.0), 2);
+        h.draw(&big(3.0), 3);
+        assert_eq!(h.form_factor(1), 0.0);
+        assert_eq!(h.form_factor(3), 0.0);
+        let f = h.form_factor(2);
+        let exact = contour::point_to_polygon(DVec3::ZERO, DVec3::Z, &big(1.0));
+        assert!((f - exact).abs() < 0.01, "{f} vs {exact}");
+    }
+}

@@ -1,0 +1,113 @@
+//! Hybrid: the hemicube where it is good, the analytic contour method everywhere else.
+//!
+//! VRAD (Valve's radiosity compiler) and Wallace, Elmquist & Haines (1989) use analytic
+//! form factors for light sources and for receivers within about five shooter radii, where
+//! the hemicube's point approximation of the shooter fails. The hemicube also fails the other
+//! way — aliasing — for receivers that cover few of its pixels (small or far elements, and
+//! every reference case at distance 100), so the rule here is: a receiving element gets
+//! [`contour`](super::contour) values (Lambert × stratified visibility) when
+//!
+//! * the shooter emits (its shadows matter most), or
+//! * its centroid is closer than `k · √(A_i/π)` to the shooter's centroid (`hybrid_k`), or
+//! * it is expected to cover fewer than `hybrid_min_pixels` hemicube pixels
+//!   (`A_j cosθ_j / r²` over the solid angle of a top-face pixel),
+//!
+//! and the hemicube value otherwise. The hemicube is rasterised only when some element
+//! needs it. Known error: that of the contour method on the analytic part, and of a
+//! hemicube with at least `hybrid_min_pixels` pixels per element on the rest (roughly one
+//! boundary pixel in `√pixels`); the measured figures and the choice of `k` are in
+//! docs/FORMFACTORS.md.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::hemicube::{self, DeltaTable};
+use super::{FormFactorParams, RowContext, ShotSetup, contour_patch, patch_slices};
+use crate::mesh::PatchId;
+
+/// Whether a receiver (centroid `c`, normal `n`, area `a`) is computed analytically for a
+/// shooter (centroid `sc`, area `sa`, emitting or not).
+#[allow(clippy::too_many_arguments)]
+pub fn analytic(
+    params: &FormFactorParams,
+    pixel_solid_angle: f64,
+    emitter: bool,
+    sc: DVec3,
+    sa: f64,
+    c: DVec3,
+    n: DVec3,
+    a: f64,
+) -> bool {
+    if emitter {
+        return true;
+    }
+    let d = sc - c;
+    let r2 = d.length_squared();
+    let radius = (sa.max(a) / std::f64::consts::PI).sqrt();
+    if r2 < (params.hybrid_k * radius).powi(2) {
+        return true;
+    }
+    let cos = n.dot(d) / r2.sqrt();
+    if cos <= 0.0 {
+        return true; // Faces away: the contour row gives 0 at no cost.
+    }
+    a * cos / r2 / pixel_solid_angle < params.hybrid_min_pixels
+}
+
+/// `out[j] = F_ji`: contour values for analytic receivers, hemicube values for the rest.
+pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicBool) -> bool {
+    let mesh = ctx.mesh;
+    let patch = mesh.patch(shooter);
+    let emitter = ctx.scene.materials[patch.material.0 as usize].is_emitter();
+    let table = DeltaTable::new(ctx.params.hemicube_res);
+    let omega = table.pixel_solid_angle();
+    let is_analytic: Vec<bool> = mesh
+        .elements
+        .iter()
+        .map(|e| {
+            analytic(
+                ctx.params,
+                omega,
+                emitter,
+                patch.centroid,
+                patch.area,
+                e.centroid,
+                e.normal,
+                e.area,
+            )
+        })
+        .collect();
+    let cube = if is_analytic.iter().all(|a| *a) {
+        None
+    } else {
+        match hemicube::element_values(ctx, shooter, &table, cancel) {
+            Some(v) => Some(v),
+            None => return false,
+        }
+    };
+    let setup = ShotSetup::new(ctx, shooter);
+    patch_slices(mesh, out)
+        .into_par_iter()
+        .for_each(|(k, slice)| {
+            if cancel.load(Ordering::Relaxed) {
+                return;
+            }
+            let first = mesh.patches[k].elements.start as usize;
+            let range = first..first + slice.len();
+            if is_analytic[range.clone()].iter().any(|a| *a) {
+                contour_patch(ctx, shooter, &setup, k, slice);
+            }
+            if let Some(values) = &cube {
+                for (i, f) in slice.iter_mut().enumerate() {
+                    let j = first + i;
+                    if !is_analytic[j] {
+                        let e = &mesh.elements[j];
+                        *f = (values[j] * patch.area / e.area) as f32;
+                    }
+                }
+            }
+        });
+    !cancel.load(Ordering::Relaxed)
+}
