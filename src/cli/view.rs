@@ -19,8 +19,8 @@ pub struct ViewCmdArgs {
     /// Element edge length (scene units); default 1/80 of the scene's diagonal.
     #[arg(long)]
     pub element_size: Option<f64>,
-    /// Form-factor method.
-    #[arg(long)]
+    /// Form-factor method (contour, exact, hemicube, raycast, montecarlo, hybrid).
+    #[arg(long = "formfactor", alias = "method")]
     pub method: Option<String>,
     /// Window size in points, WxH.
     #[arg(long, default_value = "1280x800")]
@@ -127,11 +127,8 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
         bail!("--element-size must be a positive number, got {s}");
     }
     let method = match &args.method {
-        Some(m) => FormFactorMethod::parse(m).with_context(|| {
-            let names: Vec<&str> = FormFactorMethod::ALL.iter().map(|m| m.name()).collect();
-            format!("--method '{m}': expected one of {}", names.join(", "))
-        })?,
-        None => FormFactorMethod::ALL[0],
+        Some(m) => super::render::parse_method("--formfactor", m)?,
+        None => FormFactorMethod::Contour,
     };
     let window = parse_window(&args.window)?;
     let edits = args
