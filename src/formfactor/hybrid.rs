@@ -56,6 +56,9 @@ pub fn analytic(
     a * cos / r2 / pixel_solid_angle < params.hybrid_min_pixels
 }
 
+/// Below this share of receivers for the hemicube, a shot uses the contour method alone.
+pub const MIN_HEMICUBE_SHARE: f64 = 0.25;
+
 /// `out[j] = F_ji`: contour values for analytic receivers, hemicube values for the rest.
 pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicBool) -> bool {
     let mesh = ctx.mesh;
@@ -63,7 +66,7 @@ pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicB
     let emitter = ctx.scene.materials[patch.material.0 as usize].is_emitter();
     let table = DeltaTable::new(ctx.params.hemicube_res);
     let omega = table.pixel_solid_angle();
-    let is_analytic: Vec<bool> = mesh
+    let mut is_analytic: Vec<bool> = mesh
         .elements
         .iter()
         .map(|e| {
@@ -79,7 +82,11 @@ pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicB
             )
         })
         .collect();
-    let cube = if is_analytic.iter().all(|a| *a) {
+    // The hemicube costs a whole raster per shot; when it would serve only a small share of
+    // the receivers, the contour method for all of them is cheaper and never less accurate.
+    let served = is_analytic.iter().filter(|a| !**a).count();
+    let cube = if (served as f64) < MIN_HEMICUBE_SHARE * is_analytic.len() as f64 {
+        is_analytic.iter_mut().for_each(|a| *a = true);
         None
     } else {
         match hemicube::element_values(ctx, shooter, &table, cancel) {
