@@ -66,7 +66,11 @@ render() {
         --out "$out/r.pfm" $@
 }
 summary() {
-    python3 -c 'import json,sys; d=json.loads(sys.argv[1]); print(f"{100*d[\"error\"]:.2f} % | {d[\"solve_seconds\"]:.2f} | {d[\"total_seconds\"]:.2f} | {d[\"shots\"]}")' "$1"
+    python3 - "$1" <<'PY'
+import json, sys
+d = json.loads(sys.argv[1])
+print("%.2f %% | %.2f | %.2f | %d" % (100 * d["error"], d["solve_seconds"], d["total_seconds"], d["shots"]))
+PY
 }
 
 echo "## Cornell box, converged (--unshot 1e-4), 256×256, default mesh"

@@ -180,7 +180,7 @@ pub fn evaluate(case: &Case, method: FormFactorMethod, params: &FormFactorParams
                 Some((p, _)) => (p, 0.0),
                 None => (polygon::centroid(&a1), polygon::area(&a1)),
             };
-            let omega = hemicube::DeltaTable::new(params.hemicube_res).pixel_solid_angle();
+            let omega = hemicube::DeltaTable::pixel_solid_angle_at(params.hemicube_res);
             // The hemicube sits on A1 (the "shooter"); A2 is what it sees.
             let n2 = polygon::normal(&a2).unwrap_or(DVec3::Z);
             let use_analytic = hybrid::analytic(

@@ -207,12 +207,11 @@ pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicB
                 } else {
                     polygon::clip_to_halfspace(&patch.polygon, e.centroid, e.normal)
                 };
-                let part;
-                let sampler = if clipped.len() >= 3 {
-                    part = PolygonSampler::new(&clipped);
-                    &part
-                } else {
+                let part = PolygonSampler::new(&clipped);
+                let sampler = if part.is_empty() {
                     &setup.sampler
+                } else {
+                    &part
                 };
                 let v = visibility_fraction(
                     ctx.bvh,

@@ -88,6 +88,14 @@ impl DeltaTable {
         let d = 2.0 / self.res as f64;
         d * d
     }
+
+    /// [`pixel_solid_angle`](Self::pixel_solid_angle) of a table of resolution `res`,
+    /// without building it.
+    pub fn pixel_solid_angle_at(res: u32) -> f64 {
+        let res = (res.max(2) as usize).div_ceil(2) * 2;
+        let d = 2.0 / res as f64;
+        d * d
+    }
 }
 
 /// One face's buffers.

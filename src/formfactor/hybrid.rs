@@ -64,11 +64,15 @@ pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicB
     let mesh = ctx.mesh;
     let patch = mesh.patch(shooter);
     let emitter = ctx.scene.materials[patch.material.0 as usize].is_emitter();
-    let table = DeltaTable::new(ctx.params.hemicube_res);
-    let omega = table.pixel_solid_angle();
+    // Built only when the hemicube is used (it is a fixed cost per row).
+    let omega = DeltaTable::pixel_solid_angle_at(ctx.params.hemicube_res);
+    if emitter {
+        // Every receiver is analytic: exactly the contour row, without the per-element rule.
+        return super::compute_row(super::FormFactorMethod::Contour, ctx, shooter, out, cancel);
+    }
     let mut is_analytic: Vec<bool> = mesh
         .elements
-        .iter()
+        .par_iter()
         .map(|e| {
             analytic(
                 ctx.params,
@@ -89,6 +93,7 @@ pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicB
         is_analytic.iter_mut().for_each(|a| *a = true);
         None
     } else {
+        let table = DeltaTable::new(ctx.params.hemicube_res);
         match hemicube::element_values(ctx, shooter, &table, cancel) {
             Some(v) => Some(v),
             None => return false,

@@ -207,6 +207,11 @@ impl PolygonSampler {
     pub fn normal(&self) -> DVec3 {
         self.normal
     }
+
+    /// True for a degenerate polygon (no triangles to sample).
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
 }
 
 /// Fraction of `m × m` stratified rays from `x` to the sampler's polygon that arrive. With
