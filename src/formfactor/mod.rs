@@ -460,57 +460,44 @@ pub(crate) fn contour_patch(
     for (i, f) in slice.iter_mut().enumerate() {
         let j = first + i;
         let e = &mesh.elements[j];
+        let mut rng = Rng::new(hash_seed(&[ctx.params.seed, shooter.0 as u64, j as u64]), 0);
+        if !culled {
+            // Too many candidate blockers to list: shadow rays through the whole BVH.
+            *f = occluded_point_to_polygon(
+                ctx.bvh,
+                e.centroid,
+                e.normal,
+                &patch.polygon,
+                &setup.sampler,
+                setup.m,
+                setup.probe,
+                ctx.epsilon,
+                ignore,
+                &mut rng,
+            ) as f32;
+            continue;
+        }
         let analytic = contour::point_to_polygon_with_normal(
             e.centroid,
             e.normal,
             &patch.polygon,
             patch.normal,
         );
-        if analytic <= 0.0 || (culled && candidates.is_empty()) {
+        if analytic <= 0.0 || candidates.is_empty() {
             *f = analytic.max(0.0) as f32;
             continue;
         }
-        let mut rng = Rng::new(hash_seed(&[ctx.params.seed, shooter.0 as u64, j as u64]), 0);
-        let v = if culled {
-            element_visibility(
-                ctx,
-                e.centroid,
-                e.normal,
-                patch,
-                &setup.sampler,
-                setup.m,
-                setup.probe,
-                &candidates,
-                &mut rng,
-            )
-        } else {
-            let above = patch
-                .polygon
-                .iter()
-                .all(|v| (*v - e.centroid).dot(e.normal) >= 0.0);
-            let part;
-            let target = if above {
-                &setup.sampler
-            } else {
-                part = PolygonSampler::new(&polygon::clip_to_halfspace(
-                    &patch.polygon,
-                    e.centroid,
-                    e.normal,
-                ));
-                &part
-            };
-            visibility_fraction(
-                ctx.bvh,
-                e.centroid,
-                e.normal,
-                target,
-                setup.m,
-                setup.probe,
-                ctx.epsilon,
-                ignore,
-                &mut rng,
-            )
-        };
+        let v = element_visibility(
+            ctx,
+            e.centroid,
+            e.normal,
+            patch,
+            &setup.sampler,
+            setup.m,
+            setup.probe,
+            &candidates,
+            &mut rng,
+        );
         *f = (analytic * v) as f32;
     }
 }
