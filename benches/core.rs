@@ -73,6 +73,7 @@ fn solve(c: &mut Criterion) {
                 bvh: solver.bvh(),
                 params: &params,
                 epsilon: 1e-3,
+                raster: None,
             };
             nusselt::formfactor::compute_row(
                 solver.config().method,

@@ -81,3 +81,34 @@ fn a_broken_shader_is_rejected() {
     });
     assert!(!matches!(valid, Ok(true)));
 }
+
+#[test]
+fn hemicube_shader_matches_the_rust_side() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders/hemicube.wgsl");
+    let module = validate(&path);
+    assert_eq!(
+        nusselt::gpu::hemicube::SHADER_SOURCE,
+        std::fs::read_to_string(&path).expect("read")
+    );
+    let names: Vec<&str> = module
+        .entry_points
+        .iter()
+        .map(|e| e.name.as_str())
+        .collect();
+    for want in ["vs_main", "fs_main"] {
+        assert!(names.contains(&want), "{want} missing: {names:?}");
+    }
+    let (_, face) = module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some("Face"))
+        .expect("Face struct");
+    let naga::TypeInner::Struct { span, .. } = &face.inner else {
+        panic!("Face is not a struct");
+    };
+    assert_eq!(
+        *span as usize,
+        std::mem::size_of::<nusselt::gpu::hemicube::FaceUniform>(),
+        "uniform block size differs between WGSL and Rust"
+    );
+}

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use clap::Args;
 
 use super::render::{MethodArgs, parse_method};
@@ -13,7 +13,7 @@ use crate::formfactor::{FormFactorParams, cases};
 pub struct FormfactorArgs {
     /// JSON array of cases (A1/A2 polygons or point + point_normal, optional occluders).
     pub cases: PathBuf,
-    /// Method: contour, exact, hemicube, raycast, montecarlo or hybrid.
+    /// Method: contour, exact, hemicube, raycast, montecarlo, hybrid or gpu-hemicube.
     #[arg(long, default_value = "contour")]
     pub method: String,
     /// Shadow rays per visibility estimate (contour and hybrid, when a case has occluders).
@@ -46,9 +46,11 @@ pub fn run(args: &FormfactorArgs) -> Result<()> {
         cubature_depth: args.cubature_depth.min(12),
         ..args.method_args.params()
     };
+    let raster = super::render::raster_for(method)?;
     for case in &list {
         let start = Instant::now();
-        let value = cases::evaluate(case, method, &params);
+        let value = cases::evaluate_with(case, method, &params, raster.as_deref())
+            .with_context(|| format!("{}: case '{}'", args.cases.display(), case.name))?;
         let seconds = start.elapsed().as_secs_f64();
         println!(
             "{}",

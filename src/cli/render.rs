@@ -2,6 +2,7 @@
 
 use std::io::Write;
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
@@ -10,6 +11,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{SceneArgs, ViewArgs};
+use crate::formfactor::hemicube::ItemBufferRaster;
 use crate::formfactor::{FormFactorMethod, FormFactorParams};
 use crate::render::{self, Image, SolutionView};
 use crate::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
@@ -43,7 +45,8 @@ pub struct RenderArgs {
     pub seconds: Option<f64>,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Form-factor method: contour, exact, hemicube, raycast, montecarlo or hybrid.
+    /// Form-factor method: contour, exact, hemicube, raycast, montecarlo, hybrid or
+    /// gpu-hemicube.
     #[arg(long, default_value = "contour")]
     pub formfactor: String,
     /// Shadow rays per receiver-patch visibility estimate (montecarlo: point pairs per
@@ -119,6 +122,15 @@ impl MethodArgs {
             ..Default::default()
         }
     }
+}
+
+/// The GPU hemicube when `method` needs it (opening the device), else `None`.
+pub fn raster_for(method: FormFactorMethod) -> Result<Option<Arc<dyn ItemBufferRaster>>> {
+    if method != FormFactorMethod::GpuHemicube {
+        return Ok(None);
+    }
+    let gpu = crate::gpu::GpuHemicube::new().context("--formfactor gpu-hemicube")?;
+    Ok(Some(Arc::new(gpu)))
 }
 
 /// Parses a method name with the library's parser; the message names the flag.
@@ -202,8 +214,10 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
             ..args.method_args.params()
         },
         patch_size: args.patch_size,
+        raster: raster_for(method)?,
         ..Default::default()
     };
+    let adapter = config.raster.as_ref().map(|r| r.describe());
     let solve_start = Instant::now();
     let mut solver = ProgressiveSolver::new(scene, config)?;
     let stop = StopCriteria {
@@ -299,6 +313,8 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
         "total_seconds": process_start.elapsed().as_secs_f64(),
         "unshot_fraction": solver.unshot_fraction(),
         "error": error,
+        "method": method.name(),
+        "rasteriser": adapter,
     });
     if args.json {
         println!("{summary}");

@@ -19,7 +19,7 @@ pub struct ViewCmdArgs {
     /// Element edge length (scene units); default 1/80 of the scene's diagonal.
     #[arg(long)]
     pub element_size: Option<f64>,
-    /// Form-factor method (contour, exact, hemicube, raycast, montecarlo, hybrid).
+    /// Form-factor method (contour, exact, hemicube, raycast, montecarlo, hybrid, gpu-hemicube).
     #[arg(long = "formfactor", alias = "method")]
     pub method: Option<String>,
     /// Window size in points, WxH.
@@ -173,6 +173,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
         ui: UiOptions {
             element_size: args.element_size,
             method,
+            raster: super::render::raster_for(method)?,
             window,
             wireframe: args.wireframe,
             patch_outlines: args.patch_outlines,

@@ -11,7 +11,9 @@ use super::{
     FormFactorMethod, FormFactorParams, PolygonSampler, contour, exact, hemicube, hybrid,
     montecarlo, occluded_point_to_polygon, raycast,
 };
+use super::hemicube::{ItemBufferRaster, RasterError};
 use crate::geometry::bvh::TriangleInput;
+use crate::geometry::sampling::hash_seed;
 use crate::geometry::{Bvh, Rng, polygon};
 
 #[derive(Clone, Debug, Deserialize)]
@@ -98,6 +100,21 @@ pub fn load(path: &Path) -> Result<Vec<Case>, CaseError> {
 /// `params.rays` samples over A1 uniformly; `exact` uses the double contour integral (with
 /// occluders: the exact point-to-visible-polygon value integrated adaptively over A1).
 pub fn evaluate(case: &Case, method: FormFactorMethod, params: &FormFactorParams) -> f64 {
+    match evaluate_with(case, method, params, None) {
+        Ok(v) => v,
+        // Without a rasteriser `gpu-hemicube` is computed by the CPU hemicube, which cannot fail.
+        Err(_) => evaluate(case, FormFactorMethod::Hemicube, params),
+    }
+}
+
+/// [`evaluate`], with `raster` drawing the hemicubes of `gpu-hemicube` (without one it is
+/// the CPU hemicube).
+pub fn evaluate_with(
+    case: &Case,
+    method: FormFactorMethod,
+    params: &FormFactorParams,
+    raster: Option<&dyn ItemBufferRaster>,
+) -> Result<f64, RasterError> {
     let a2 = to_vecs(&case.a2);
     let occluders: Vec<Vec<DVec3>> = case.occluders.iter().map(|o| to_vecs(o)).collect();
     let bvh = occluder_bvh(&occluders);
@@ -121,10 +138,10 @@ pub fn evaluate(case: &Case, method: FormFactorMethod, params: &FormFactorParams
     };
     let a1 = to_vecs(&case.a1);
     let mut rng = Rng::new(params.seed, 0);
-    match method {
+    let value = match method {
         FormFactorMethod::Contour => {
             if let Some((p, n)) = point {
-                return point_value(p, n, &mut rng);
+                return Ok(point_value(p, n, &mut rng));
             }
             // Sampled visibility is noisy: refine a fixed few levels only, not to 1e-10.
             let depth = if occluders.is_empty() { 14 } else { 2 };
@@ -132,16 +149,21 @@ pub fn evaluate(case: &Case, method: FormFactorMethod, params: &FormFactorParams
         }
         FormFactorMethod::Exact => {
             if let Some((p, n)) = point {
-                return exact::point_to_visible_polygon(p, n, &a2, &occluders);
+                return Ok(exact::point_to_visible_polygon(p, n, &a2, &occluders));
             }
             if occluders.is_empty() {
-                return exact::polygon_to_polygon(&a1, &a2);
+                return Ok(exact::polygon_to_polygon(&a1, &a2));
             }
             integrate_over_with_floor(&a1, params.cubature_depth, 1e-13, &mut |p, n| {
                 exact::point_to_visible_polygon(p, n, &a2, &occluders)
             })
         }
-        FormFactorMethod::Hemicube => hemicube_case(point, &a1, &a2, &occluders, params, &mut rng),
+        FormFactorMethod::Hemicube => {
+            hemicube_case(point, &a1, &a2, &occluders, params, None, &mut rng)?
+        }
+        FormFactorMethod::GpuHemicube => {
+            hemicube_case(point, &a1, &a2, &occluders, params, raster, &mut rng)?
+        }
         FormFactorMethod::Raycast => {
             let mut tris = triangles(&a2, 0);
             for o in &occluders {
@@ -199,7 +221,8 @@ pub fn evaluate(case: &Case, method: FormFactorMethod, params: &FormFactorParams
                 evaluate(case, FormFactorMethod::Hemicube, params)
             }
         }
-    }
+    };
+    Ok(value)
 }
 
 fn triangles(poly: &[DVec3], id: u32) -> Vec<TriangleInput> {
@@ -219,19 +242,46 @@ fn hemicube_case(
     a2: &[DVec3],
     occluders: &[Vec<DVec3>],
     params: &FormFactorParams,
+    raster: Option<&dyn ItemBufferRaster>,
     rng: &mut Rng,
-) -> f64 {
+) -> Result<f64, RasterError> {
     let table = hemicube::DeltaTable::new(params.hemicube_res);
     let scale = crate::geometry::Aabb::from_points(a2.iter()).diagonal();
     let near = 1e-9 * scale.max(1e-12);
     let a2_pieces = convex_pieces(a2);
     let occ_pieces: Vec<Vec<DVec3>> = occluders.iter().flat_map(|o| convex_pieces(o)).collect();
+    // For a rasteriser: A2's pieces draw id 0, the occluders block.
+    let all: Vec<Vec<DVec3>> = a2_pieces.iter().chain(&occ_pieces).cloned().collect();
+    let ids: Vec<u32> = (0..all.len())
+        .map(|k| if k < a2_pieces.len() { 0 } else { hemicube::NONE })
+        .collect();
+    let key = hash_seed(
+        &all.iter()
+            .flatten()
+            .flat_map(|p| p.to_array().map(f64::to_bits))
+            .collect::<Vec<u64>>(),
+    );
+    let mut failure = None;
     let mut at = |p: DVec3, n: DVec3| {
         let angle = if params.hemicube_rotate {
             rng.next_f64() * std::f64::consts::TAU
         } else {
             0.0
         };
+        if let Some(r) = raster {
+            let view = hemicube::HemicubeView {
+                origin: p,
+                axes: hemicube::hemicube_axes(n, angle),
+                near,
+            };
+            return match r.form_factors(key, &|| all.clone(), &view, &table, &ids, 1) {
+                Ok(v) => v[0],
+                Err(e) => {
+                    failure.get_or_insert(e);
+                    0.0
+                }
+            };
+        }
         let mut cube = hemicube::Hemicube::new(&table, p, n, angle, near);
         for piece in &a2_pieces {
             cube.draw(piece, 0);
@@ -241,9 +291,13 @@ fn hemicube_case(
         }
         cube.form_factor(0)
     };
-    match point {
+    let value = match point {
         Some((p, n)) => at(p, n),
         None => integrate_fixed(a1, &mut at),
+    };
+    match failure {
+        Some(e) => Err(e),
+        None => Ok(value),
     }
 }
 

@@ -30,6 +30,53 @@ use crate::mesh::PatchId;
 /// Id of pixels that see nothing, or a polygon that only blocks.
 pub const NONE: u32 = u32::MAX;
 
+/// Id of a polygon that is not drawn at all (for [`ItemBufferRaster`]).
+pub const SKIP: u32 = u32::MAX - 1;
+
+/// Where a hemicube sits: `axes[2]` is the normal, `axes[0..2]` span the top face's x and y
+/// (see [`hemicube_axes`]); geometry nearer than `near` along a face's axis is clipped.
+#[derive(Clone, Copy, Debug)]
+pub struct HemicubeView {
+    pub origin: DVec3,
+    pub axes: [DVec3; 3],
+    pub near: f64,
+}
+
+/// A hemicube's item buffer rasterised elsewhere — the GPU one is `crate::gpu::GpuHemicube`,
+/// outside the core so that the core never depends on wgpu. It must draw exactly what
+/// [`Hemicube`] draws: the same five faces, pixel centres, nearest polygon wins, and the
+/// same face layout for [`DeltaTable::deltas`].
+pub trait ItemBufferRaster: Send + Sync + std::fmt::Debug {
+    /// What rasterises (e.g. the GPU adapter's name).
+    fn describe(&self) -> String;
+
+    /// Draws the convex polygons returned by `polygons` (world coordinates; called again only
+    /// when `key` differs from the previous call's) at `view`, polygon `k` with id `ids[k]`
+    /// ([`NONE`] blocks, [`SKIP`] is not drawn), and returns for every id below `n` the sum of
+    /// the delta form factors of its pixels in `table`.
+    fn form_factors(
+        &self,
+        key: u64,
+        polygons: &dyn Fn() -> Vec<Vec<DVec3>>,
+        view: &HemicubeView,
+        table: &DeltaTable,
+        ids: &[u32],
+        n: usize,
+    ) -> Result<Vec<f64>, RasterError>;
+}
+
+/// A rasteriser failed (device lost, out of memory, …).
+#[derive(Debug, thiserror::Error)]
+#[error("hemicube rasteriser: {0}")]
+pub struct RasterError(pub String);
+
+/// The hemicube frame: tangent and bitangent rotated by `angle` about `normal`, then `normal`.
+pub fn hemicube_axes(normal: DVec3, angle: f64) -> [DVec3; 3] {
+    let (t, b) = basis(normal);
+    let (s, c) = angle.sin_cos();
+    [t * c + b * s, b * c - t * s, normal]
+}
+
 /// Delta form factors for one resolution.
 #[derive(Clone, Debug)]
 pub struct DeltaTable {
@@ -78,6 +125,13 @@ impl DeltaTable {
         self.res
     }
 
+    /// Delta form factors of face `f`, row-major from its first row: face 0 is the top
+    /// (`res × res`, row `j` at `y = −1 + (j + ½)·2/res`), faces 1–4 the sides (`res/2` rows
+    /// of `res`, row `j` at height `z = (j + ½)·2/res`).
+    pub fn deltas(&self, f: usize) -> &[f64] {
+        if f == 0 { &self.top } else { &self.side }
+    }
+
     /// Sum over the whole hemicube (1 in the limit).
     pub fn sum(&self) -> f64 {
         self.top.iter().sum::<f64>() + 4.0 * self.side.iter().sum::<f64>()
@@ -122,9 +176,7 @@ impl<'t> Hemicube<'t> {
     /// A hemicube at `origin` looking along unit `normal`, rotated by `angle` about it;
     /// geometry nearer than `near` along a face's axis is clipped.
     pub fn new(table: &'t DeltaTable, origin: DVec3, normal: DVec3, angle: f64, near: f64) -> Self {
-        let (t, b) = basis(normal);
-        let (s, c) = angle.sin_cos();
-        let axes = [t * c + b * s, b * c - t * s, normal];
+        let axes = hemicube_axes(normal, angle);
         let res = table.res;
         let faces = (0..5)
             .map(|f| {
@@ -201,6 +253,11 @@ impl<'t> Hemicube<'t> {
         }
     }
 
+    /// The item buffer, face after face in the layout of [`DeltaTable::deltas`].
+    pub fn item_buffer(&self) -> Vec<u32> {
+        self.faces.iter().flat_map(|f| f.ids.iter().copied()).collect()
+    }
+
     /// Form factor of one id.
     pub fn form_factor(&self, id: u32) -> f64 {
         let mut sum = 0.0;
@@ -243,25 +300,11 @@ pub fn element_values(
     let patch = mesh.patch(shooter);
     let angle = shot_angle(ctx, shooter);
     let mut cube = Hemicube::new(table, patch.centroid, patch.normal, angle, ctx.epsilon);
-    let polys: Vec<(Vec<Local>, u32)> = mesh
-        .elements
-        .iter()
-        .enumerate()
-        .filter_map(|(j, e)| {
-            if e.patch == shooter {
-                return None;
-            }
-            let facing = (patch.centroid - e.centroid).dot(e.normal);
-            let id = if facing > ctx.epsilon {
-                j as u32
-            } else if ctx.scene.two_sided || facing > -ctx.epsilon {
-                return None;
-            } else {
-                NONE
-            };
-            let local: Vec<Local> = e.corners().iter().map(|c| cube.local(*c)).collect();
-            Some((local, id))
-        })
+    let polys: Vec<(Vec<Local>, u32)> = element_ids(ctx, shooter)
+        .into_iter()
+        .zip(&mesh.elements)
+        .filter(|(id, _)| *id != SKIP)
+        .map(|(id, e)| (e.corners().iter().map(|c| cube.local(*c)).collect(), id))
         .collect();
     if cancel.load(Ordering::Relaxed) {
         return None;
@@ -272,21 +315,88 @@ pub fn element_values(
     Some(values)
 }
 
+/// What each element is for a hemicube at the shooter: its own id (faces the shooter),
+/// [`NONE`] (faces away in a one-sided scene: blocks) or [`SKIP`] (the shooter's own
+/// elements; faces away in a two-sided scene, where its other side is an element of its own).
+pub fn element_ids(ctx: &RowContext, shooter: PatchId) -> Vec<u32> {
+    let patch = ctx.mesh.patch(shooter);
+    ctx.mesh
+        .elements
+        .iter()
+        .enumerate()
+        .map(|(j, e)| {
+            if e.patch == shooter {
+                return SKIP;
+            }
+            let facing = (patch.centroid - e.centroid).dot(e.normal);
+            if facing > ctx.epsilon {
+                j as u32
+            } else if ctx.scene.two_sided || facing > -ctx.epsilon {
+                SKIP
+            } else {
+                NONE
+            }
+        })
+        .collect()
+}
+
+/// `F_ij` from the shooter to every element like [`element_values`], rasterised by
+/// `raster` (the GPU hemicube).
+pub fn raster_element_values(
+    ctx: &RowContext,
+    raster: &dyn ItemBufferRaster,
+    shooter: PatchId,
+    table: &DeltaTable,
+) -> Result<Vec<f64>, RasterError> {
+    let mesh = ctx.mesh;
+    let patch = mesh.patch(shooter);
+    let view = HemicubeView {
+        origin: patch.centroid,
+        axes: hemicube_axes(patch.normal, shot_angle(ctx, shooter)),
+        near: ctx.epsilon,
+    };
+    let ids = element_ids(ctx, shooter);
+    let polygons = || mesh.elements.iter().map(|e| e.corners().to_vec()).collect();
+    raster.form_factors(mesh.id, &polygons, &view, table, &ids, mesh.elements.len())
+}
+
+/// The `gpu-hemicube` row: [`row`] with the item buffer from `ctx.raster`. Without a
+/// rasteriser, or when it fails (the error is printed once), the CPU hemicube computes it.
+pub fn raster_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicBool) -> bool {
+    let table = DeltaTable::new(ctx.params.hemicube_res);
+    let values = match ctx.raster.map(|r| raster_element_values(ctx, r, shooter, &table)) {
+        Some(Ok(v)) => v,
+        Some(Err(e)) => {
+            static WARNED: std::sync::Once = std::sync::Once::new();
+            WARNED.call_once(|| eprintln!("warning: {e}; falling back to the CPU hemicube"));
+            return row(ctx, shooter, out, cancel);
+        }
+        None => return row(ctx, shooter, out, cancel),
+    };
+    write_row(ctx, shooter, &values, out);
+    !cancel.load(Ordering::Relaxed)
+}
+
 /// `out[j] = F_ji = F_ij A_i / A_j` from one hemicube at the shooter's centroid.
 pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicBool) -> bool {
     let table = DeltaTable::new(ctx.params.hemicube_res);
     let Some(values) = element_values(ctx, shooter, &table, cancel) else {
         return false;
     };
+    write_row(ctx, shooter, &values, out);
+    !cancel.load(Ordering::Relaxed)
+}
+
+/// Reciprocity: `out[j] = F_ij A_i / A_j`.
+fn write_row(ctx: &RowContext, shooter: PatchId, values: &[f64], out: &mut [f32]) {
     let area = ctx.mesh.patch(shooter).area;
-    for ((o, v), e) in out.iter_mut().zip(&values).zip(&ctx.mesh.elements) {
+    for ((o, v), e) in out.iter_mut().zip(values).zip(&ctx.mesh.elements) {
         *o = if e.area > 0.0 {
             (v * area / e.area) as f32
         } else {
             0.0
         };
     }
-    !cancel.load(Ordering::Relaxed)
 }
 
 /// Face coordinates (X, Y, D) of a local point: screen = (X/D, Y/D).

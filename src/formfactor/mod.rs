@@ -47,6 +47,9 @@ pub enum FormFactorMethod {
     Montecarlo,
     /// Analytic for lights and near or small receivers, hemicube for the rest.
     Hybrid,
+    /// The item-buffer hemicube rasterised by a GPU through wgpu (`crate::gpu`); needs a
+    /// [`hemicube::ItemBufferRaster`] in the [`RowContext`].
+    GpuHemicube,
 }
 
 impl FormFactorMethod {
@@ -57,6 +60,7 @@ impl FormFactorMethod {
         FormFactorMethod::Raycast,
         FormFactorMethod::Montecarlo,
         FormFactorMethod::Hybrid,
+        FormFactorMethod::GpuHemicube,
     ];
 
     pub fn name(self) -> &'static str {
@@ -67,6 +71,7 @@ impl FormFactorMethod {
             FormFactorMethod::Raycast => "raycast",
             FormFactorMethod::Montecarlo => "montecarlo",
             FormFactorMethod::Hybrid => "hybrid",
+            FormFactorMethod::GpuHemicube => "gpu-hemicube",
         }
     }
 
@@ -154,6 +159,8 @@ pub struct RowContext<'a> {
     pub params: &'a FormFactorParams,
     /// Offset of shadow-ray end points from their surfaces (scene units).
     pub epsilon: f64,
+    /// The rasteriser of `gpu-hemicube` rows (without one they fall back to the CPU hemicube).
+    pub raster: Option<&'a dyn hemicube::ItemBufferRaster>,
 }
 
 /// Stratified points on a polygon (area-uniform), for visibility rays.
@@ -386,6 +393,7 @@ pub fn compute_row(
         FormFactorMethod::Raycast => raycast::row(ctx, shooter, out, cancel),
         FormFactorMethod::Montecarlo => montecarlo::row(ctx, shooter, out, cancel),
         FormFactorMethod::Hybrid => hybrid::row(ctx, shooter, out, cancel),
+        FormFactorMethod::GpuHemicube => hemicube::raster_row(ctx, shooter, out, cancel),
     }
 }
 

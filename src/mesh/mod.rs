@@ -94,6 +94,9 @@ struct TVertex {
 
 #[derive(Clone, Debug)]
 pub struct Mesh {
+    /// Unique per built mesh (a clone keeps it: same geometry), so that caches elsewhere
+    /// (the GPU hemicube's vertex buffer) know when the geometry changed.
+    pub id: u64,
     pub patches: Vec<Patch>,
     pub elements: Vec<Element>,
     /// Display vertex positions.
@@ -211,7 +214,9 @@ impl Mesh {
                 }
             }
         }
+        static NEXT_MESH_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
         let mut mesh = Mesh {
+            id: NEXT_MESH_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             patches,
             elements,
             vertices: Vec::new(),

@@ -18,6 +18,7 @@ use std::time::Instant;
 
 use glam::DVec3;
 
+use crate::formfactor::hemicube::ItemBufferRaster;
 use crate::formfactor::{self, FormFactorMethod, FormFactorParams, RowContext};
 use crate::geometry::{Bvh, Ray};
 use crate::mesh::{self, Mesh, MeshError, PatchId};
@@ -33,6 +34,9 @@ pub struct SolverConfig {
     pub formfactor: FormFactorParams,
     /// Memory for cached form-factor rows, in bytes.
     pub row_cache_bytes: usize,
+    /// The rasteriser of `gpu-hemicube` rows (`crate::gpu::GpuHemicube`); required by that
+    /// method, unused by the others.
+    pub raster: Option<Arc<dyn ItemBufferRaster>>,
 }
 
 impl Default for SolverConfig {
@@ -43,6 +47,7 @@ impl Default for SolverConfig {
             method: FormFactorMethod::Contour,
             formfactor: FormFactorParams::default(),
             row_cache_bytes: 512 << 20,
+            raster: None,
         }
     }
 }
@@ -51,6 +56,8 @@ impl Default for SolverConfig {
 pub enum SolverError {
     #[error(transparent)]
     Mesh(#[from] MeshError),
+    #[error("the gpu-hemicube method needs a GPU hemicube rasteriser, and none was set up")]
+    NoRaster,
     #[error("material {0} does not exist")]
     NoSuchMaterial(u32),
     #[error("{what} must be finite and {range}, got {value:?}")]
@@ -117,6 +124,9 @@ fn channel_sum(c: Rgb) -> f64 {
 
 impl ProgressiveSolver {
     pub fn new(scene: Scene, config: SolverConfig) -> Result<Self, SolverError> {
+        if config.method == FormFactorMethod::GpuHemicube && config.raster.is_none() {
+            return Err(SolverError::NoRaster);
+        }
         let size = config
             .element_size
             .unwrap_or_else(|| mesh::default_element_size(&scene));
@@ -202,11 +212,21 @@ impl ProgressiveSolver {
         Ok(())
     }
 
-    /// Switches the form-factor method (clears cached rows, restarts from dark).
-    pub fn set_method(&mut self, method: FormFactorMethod) {
+    /// Switches the form-factor method (clears cached rows, restarts from dark). Refused
+    /// (nothing changes) for `gpu-hemicube` without a rasteriser ([`set_raster`](Self::set_raster)).
+    pub fn set_method(&mut self, method: FormFactorMethod) -> Result<(), SolverError> {
+        if method == FormFactorMethod::GpuHemicube && self.config.raster.is_none() {
+            return Err(SolverError::NoRaster);
+        }
         self.config.method = method;
         self.rows.clear();
         self.reset();
+        Ok(())
+    }
+
+    /// Installs the rasteriser used by `gpu-hemicube` rows (takes effect from the next row).
+    pub fn set_raster(&mut self, raster: Option<Arc<dyn ItemBufferRaster>>) {
+        self.config.raster = raster;
     }
 
     pub fn scene(&self) -> &Scene {
@@ -317,6 +337,7 @@ impl ProgressiveSolver {
             bvh: &self.bvh,
             params: &self.config.formfactor,
             epsilon: self.epsilon,
+            raster: self.config.raster.as_deref(),
         };
         if !formfactor::compute_row(self.config.method, &ctx, shooter, &mut out, cancel) {
             return None;

@@ -74,6 +74,7 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
         solver: SolverConfig {
             element_size: options.element_size,
             method: options.method,
+            raster: options.raster.clone(),
             ..Default::default()
         },
         play: !options.paused,

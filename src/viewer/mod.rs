@@ -42,6 +42,8 @@ pub struct ViewerOptions {
 pub struct UiOptions {
     pub element_size: Option<f64>,
     pub method: FormFactorMethod,
+    /// The GPU hemicube, when `method` is `gpu-hemicube` (made on first use otherwise).
+    pub raster: Option<std::sync::Arc<dyn crate::formfactor::hemicube::ItemBufferRaster>>,
     /// Window size in points.
     pub window: [f32; 2],
     pub wireframe: bool,

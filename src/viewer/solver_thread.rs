@@ -26,6 +26,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use crate::formfactor::FormFactorMethod;
+use crate::formfactor::hemicube::ItemBufferRaster;
 use crate::mesh::PatchId;
 use crate::scene::{LoadOptions, Material, MaterialId, Rgb, Scene};
 use crate::solver::{ProgressiveSolver, SolverConfig};
@@ -513,10 +514,27 @@ impl Worker {
                 }
             }
             Command::SetMethod(method) => {
+                if method == FormFactorMethod::GpuHemicube && self.config.raster.is_none() {
+                    // Started on first use: creating a device takes a moment.
+                    match crate::gpu::GpuHemicube::new() {
+                        Ok(gpu) => {
+                            let raster: Arc<dyn ItemBufferRaster> = Arc::new(gpu);
+                            self.config.raster = Some(raster.clone());
+                            if let Some(s) = self.solver.as_mut() {
+                                s.set_raster(Some(raster));
+                            }
+                        }
+                        Err(e) => self.send_event(Event::Error(format!("gpu-hemicube: {e}"))),
+                    }
+                }
                 if let Some(s) = self.solver.as_mut() {
-                    s.set_method(method);
-                    self.config.method = method;
-                    self.restart_clock();
+                    match s.set_method(method) {
+                        Ok(()) => {
+                            self.config.method = method;
+                            self.restart_clock();
+                        }
+                        Err(e) => self.send_event(Event::Error(e.to_string())),
+                    }
                 }
             }
             Command::LoadPath(path) => match Scene::load_obj(&path, &LoadOptions::default()) {
