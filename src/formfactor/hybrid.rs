@@ -59,6 +59,41 @@ pub fn analytic(
 /// Below this share of receivers for the hemicube, a shot uses the contour method alone.
 pub const MIN_HEMICUBE_SHARE: f64 = 0.25;
 
+/// An upper bound on the share of elements [`analytic`] would give the hemicube, from
+/// per-patch bounds alone (a few operations per patch instead of per element): a receiving
+/// patch whose elements are all nearer than `k` radii, or all too small to cover
+/// `min_pixels` even at the patch's nearest distance and face-on, gives it none.
+pub fn hemicube_share_bound(ctx: &RowContext, shooter: PatchId, pixel_solid_angle: f64) -> f64 {
+    let mesh = ctx.mesh;
+    let patch = mesh.patch(shooter);
+    let near_radius = ctx.params.hybrid_k * (patch.area / std::f64::consts::PI).sqrt();
+    let mut possible = 0usize;
+    for (k, r) in mesh.patches.iter().enumerate() {
+        if k == shooter.0 as usize {
+            continue;
+        }
+        let bound = r
+            .polygon
+            .iter()
+            .map(|v| (*v - r.centroid).length())
+            .fold(0.0, f64::max);
+        let d = (r.centroid - patch.centroid).length();
+        if d + bound < near_radius {
+            continue;
+        }
+        let elements = &mesh.elements[r.elements.start as usize..r.elements.end as usize];
+        let largest = elements.iter().map(|e| e.area).fold(0.0, f64::max);
+        let nearest = (d - bound).max(0.0);
+        if nearest > 0.0
+            && largest / (nearest * nearest) / pixel_solid_angle < ctx.params.hybrid_min_pixels
+        {
+            continue;
+        }
+        possible += elements.len();
+    }
+    possible as f64 / mesh.elements.len().max(1) as f64
+}
+
 /// `out[j] = F_ji`: contour values for analytic receivers, hemicube values for the rest.
 pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicBool) -> bool {
     let mesh = ctx.mesh;
@@ -66,8 +101,9 @@ pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicB
     let emitter = ctx.scene.materials[patch.material.0 as usize].is_emitter();
     // Built only when the hemicube is used (it is a fixed cost per row).
     let omega = DeltaTable::pixel_solid_angle_at(ctx.params.hemicube_res);
-    if emitter {
-        // Every receiver is analytic: exactly the contour row, without the per-element rule.
+    if emitter || hemicube_share_bound(ctx, shooter, omega) < MIN_HEMICUBE_SHARE {
+        // Every receiver is analytic, or too few could use the hemicube for it to pay: exactly
+        // the contour row, without the per-element rule.
         return super::compute_row(super::FormFactorMethod::Contour, ctx, shooter, out, cancel);
     }
     let mut is_analytic: Vec<bool> = mesh

@@ -4,11 +4,12 @@
 //! form factor `F_ji` from (a point of) `j` to the whole of `i`, so that
 //! `ΔB_j = ρ_j ΔB_i F_ji` (Cohen, Chen, Wallace, Greenberg 1988). The default method,
 //! `contour`, evaluates Lambert's exact point-to-polygon formula at the element's centroid
-//! and multiplies it by the fraction of stratified shadow rays from that point to the patch
-//! that are unblocked (Wallace, Elmquist, Haines 1989, "A ray tracing algorithm for
-//! progressive radiosity"). Known error: the visibility fraction is exact for fully visible or
-//! fully hidden pairs and has stratified-sampling noise O(N^-3/4) in penumbrae; the centroid
-//! rule integrates over the receiving element with O(h²) error.
+//! and multiplies it by the visible fraction of stratified shadow rays from that point to the
+//! patch, each ray weighted by its point-to-point form factor (Wallace, Elmquist, Haines 1989,
+//! "A ray tracing algorithm for progressive radiosity"). Known error: the visibility fraction
+//! is exact for fully visible or fully hidden pairs and has stratified-sampling noise
+//! O(N^-3/4) in penumbrae; the centroid rule integrates over the receiving element with O(h²)
+//! error.
 
 pub mod cases;
 pub mod contour;
@@ -221,9 +222,14 @@ impl PolygonSampler {
     }
 }
 
-/// Fraction of `m × m` stratified rays from `x` to the sampler's polygon that arrive. With
-/// `probe`, four rays go first and decide alone when they agree (all arrive or none do);
-/// a blocker smaller than the gaps between them can then be missed.
+/// Visible fraction of the polygon from `x`, weighted by the point-to-point form factor:
+/// `Σ w_k v_k / Σ w_k` over `m × m` stratified points `y_k`, with `v_k` = 1 when the ray
+/// arrives and `w_k = cosθ_x cosθ_y / r²` (Wallace, Elmquist & Haines 1989 weight each
+/// sample by its delta form factor). Multiplied by Lambert's exact unoccluded value this is
+/// exact for a fully visible or fully hidden polygon and, unlike the plain area fraction,
+/// unbiased to first order when a blocker hides the part of the polygon that matters most
+/// (straight overhead). With `probe`, four rays go first and decide alone when they agree
+/// (all arrive or none do); a blocker smaller than the gaps between them can then be missed.
 #[allow(clippy::too_many_arguments)]
 pub fn visibility_fraction(
     bvh: &Bvh,
@@ -239,6 +245,7 @@ pub fn visibility_fraction(
     sampled_visibility(
         |ray| bvh.any_hit_except(ray, 1e-9, 1.0 - 1e-9, ignore),
         x + nx * epsilon,
+        nx,
         target,
         m,
         probe,
@@ -247,19 +254,22 @@ pub fn visibility_fraction(
     )
 }
 
-/// [`visibility_fraction`] with the blocking test given: rays from `origin` to stratified
-/// points lifted `epsilon` off the target.
+/// [`visibility_fraction`] with the blocking test given: rays from `origin` (normal `nx`)
+/// to stratified points lifted `epsilon` off the target.
+#[allow(clippy::too_many_arguments)]
 fn sampled_visibility(
     blocked: impl Fn(&Ray) -> bool,
     origin: DVec3,
+    nx: DVec3,
     target: &PolygonSampler,
     m: u32,
     probe: bool,
     epsilon: f64,
     rng: &mut Rng,
 ) -> f64 {
+    let ny = target.normal();
     let ray_to = |u1: f64, u2: f64| {
-        let y = target.point(u1, u2) + target.normal() * epsilon;
+        let y = target.point(u1, u2) + ny * epsilon;
         Ray::new(origin, y - origin)
     };
     if probe && m > 2 {
@@ -274,17 +284,27 @@ fn sampled_visibility(
             return seen as f64 / 4.0;
         }
     }
-    let mut visible = 0u32;
+    let (mut visible, mut total) = (0.0f64, 0.0f64);
     for a in 0..m {
         for b in 0..m {
             let u1 = (a as f64 + rng.next_f64()) / m as f64;
             let u2 = (b as f64 + rng.next_f64()) / m as f64;
-            if !blocked(&ray_to(u1, u2)) {
-                visible += 1;
+            let ray = ray_to(u1, u2);
+            let d = ray.dir;
+            let r2 = d.length_squared();
+            // cosθx cosθy / r² with an unnormalised direction.
+            let w = (nx.dot(d) * ny.dot(d)).abs() / (r2 * r2).max(f64::MIN_POSITIVE);
+            total += w;
+            if !blocked(&ray) {
+                visible += w;
             }
         }
     }
-    visible as f64 / (m * m) as f64
+    if total > 0.0 {
+        visible / total
+    } else {
+        0.0
+    }
 }
 
 pub(crate) fn side(rays: u32) -> u32 {
@@ -564,6 +584,7 @@ fn element_visibility(
     sampled_visibility(
         |ray| ctx.bvh.any_hit_among(&cutting, ray, 1e-9, 1.0 - 1e-9),
         origin,
+        nx,
         target,
         m,
         probe,
