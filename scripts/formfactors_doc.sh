@@ -20,7 +20,8 @@ if [ ! -f "$ref" ]; then
 fi
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
-methods="contour exact hemicube raycast montecarlo hybrid"
+methods="contour exact hemicube raycast montecarlo hybrid gpu-hemicube"
+# gpu-hemicube needs a wgpu adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1).
 
 echo "## Reference cases"
 echo
@@ -87,12 +88,25 @@ echo
 
 echo "## Equal time: error after a fixed solve time (--seconds T)"
 echo
-echo "| T (s) | contour | hemicube | hybrid |"
-echo "|---:|---:|---:|---:|"
+echo "Median of 3 runs each (image error, shots in brackets); timing noise moves the shot"
+echo "count by a few per cent from run to run."
+echo
+echo "| T (s) | contour | hemicube | hybrid | gpu-hemicube |"
+echo "|---:|---:|---:|---:|---:|"
 for t in 1 2 4; do
     row="| $t |"
-    for m in contour hemicube hybrid; do
-        row="$row $(summary "$(render --formfactor "$m" --seconds "$t")" | cut -d'|' -f1) |"
+    for m in contour hemicube hybrid gpu-hemicube; do
+        runs=""
+        for rep in 1 2 3; do
+            runs="$runs $(render --formfactor "$m" --seconds "$t" | tr -d ' ')"
+        done
+        row="$row $(python3 - $runs <<'PY'
+import json, sys
+ds = sorted((json.loads(a) for a in sys.argv[1:]), key=lambda d: d["error"])
+d = ds[len(ds) // 2]
+print("%.2f %% (%d shots)" % (100 * d["error"], d["shots"]))
+PY
+) |"
     done
     echo "$row"
 done
@@ -125,3 +139,21 @@ echo "|---:|---:|---:|---:|---:|"
 for n in 16384 65536; do
     echo "| $n | $(summary "$(render --formfactor raycast --rays "$n")") |"
 done
+
+echo "## GPU hemicube against the CPU hemicube"
+echo
+echo "Same shots (first 300 of the default Cornell mesh, seed 1); milliseconds per shot"
+echo "(solve seconds / shots, including the shot's update) and the image difference between"
+echo "the two renders (relative RMS over the mask)."
+echo
+echo "| --hemicube-res | CPU ms/shot | GPU ms/shot | image difference |"
+echo "|---:|---:|---:|---:|"
+for r in 128 256 512; do
+    c=$(render --formfactor hemicube --hemicube-res "$r" --shots 300 | tr -d ' ')
+    cp "$out/r.pfm" "$out/cpu.pfm"
+    g=$(render --formfactor gpu-hemicube --hemicube-res "$r" --shots 300 | tr -d ' ')
+    diff=$("$bin" compare --builtin cornell --image "$out/r.pfm" --reference "$out/cpu.pfm" 2>/dev/null | python3 -c 'import json,sys; print("%.2e" % json.loads(sys.stdin.read())["error"])')
+    echo "| $r | $(python3 -c "import json,sys; d=json.loads(sys.argv[1]); print('%.2f' % (1e3*d['solve_seconds']/d['shots']))" "$c") | $(python3 -c "import json,sys; d=json.loads(sys.argv[1]); print('%.2f' % (1e3*d['solve_seconds']/d['shots']))" "$g") | $diff |"
+done
+echo
+echo "Adapter: $(render --formfactor gpu-hemicube --shots 1 | python3 -c 'import json,sys; print(json.loads(sys.stdin.read())["rasteriser"])')"
