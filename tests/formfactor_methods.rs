@@ -431,3 +431,67 @@ fn the_cli_takes_every_method_and_its_parameters() {
         "{err}"
     );
 }
+
+/// The hybrid's per-patch bound never under-counts the receivers its per-element rule gives
+/// the hemicube (else a shot could skip the hemicube where the rule wants it).
+#[test]
+fn hybrid_share_bound_is_an_upper_bound() {
+    use nusselt::formfactor::hemicube::DeltaTable;
+    use nusselt::formfactor::{RowContext, hybrid};
+    use nusselt::mesh::PatchId;
+    for (k, min_pixels, res) in [(5.0, 64.0, 256), (2.0, 0.0, 256), (1.0, 4.0, 64)] {
+        let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+        let config = SolverConfig {
+            element_size: Some(30.0),
+            patch_size: Some(60.0),
+            formfactor: FormFactorParams {
+                hybrid_k: k,
+                hybrid_min_pixels: min_pixels,
+                hemicube_res: res,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let solver = ProgressiveSolver::new(scene, config).expect("solver");
+        let mesh = solver.mesh();
+        let params = solver.config().formfactor.clone();
+        let ctx = RowContext {
+            scene: solver.scene(),
+            mesh,
+            bvh: solver.bvh(),
+            params: &params,
+            epsilon: 1e-3,
+            raster: None,
+        };
+        let omega = DeltaTable::pixel_solid_angle_at(res);
+        let mut below = 0;
+        for (i, patch) in mesh.patches.iter().enumerate() {
+            let shooter = PatchId(i as u32);
+            let served = mesh
+                .elements
+                .iter()
+                .filter(|e| e.patch != shooter)
+                .filter(|e| {
+                    !hybrid::analytic(
+                        &params,
+                        omega,
+                        false,
+                        patch.centroid,
+                        patch.area,
+                        e.centroid,
+                        e.normal,
+                        e.area,
+                    )
+                })
+                .count() as f64
+                / mesh.elements.len() as f64;
+            let bound = hybrid::hemicube_share_bound(&ctx, shooter, omega);
+            assert!(served <= bound + 1e-12, "patch {i}: {served} > {bound}");
+            below += usize::from(bound < hybrid::MIN_HEMICUBE_SHARE);
+        }
+        eprintln!(
+            "k {k}, min_pixels {min_pixels}, res {res}: {below} of {} shooters skip the rule",
+            mesh.patches.len()
+        );
+    }
+}

@@ -30,7 +30,10 @@ fn gpu() -> Option<GpuHemicube> {
     }
 }
 
-fn cornell_config(method: FormFactorMethod, raster: Option<Arc<dyn ItemBufferRaster>>) -> SolverConfig {
+fn cornell_config(
+    method: FormFactorMethod,
+    raster: Option<Arc<dyn ItemBufferRaster>>,
+) -> SolverConfig {
     SolverConfig {
         element_size: Some(40.0),
         patch_size: Some(80.0),
@@ -54,8 +57,9 @@ fn cornell() -> Scene {
 #[test]
 fn gpu_item_buffer_matches_the_cpu_hemicube() {
     let Some(gpu) = gpu() else { return };
-    let solver = ProgressiveSolver::new(cornell(), cornell_config(FormFactorMethod::Hemicube, None))
-        .expect("solver");
+    let solver =
+        ProgressiveSolver::new(cornell(), cornell_config(FormFactorMethod::Hemicube, None))
+            .expect("solver");
     let mesh = solver.mesh();
     let params = solver.config().formfactor.clone();
     let ctx = RowContext {
@@ -176,7 +180,8 @@ fn gpu_hemicube_solves_the_cornell_box_like_the_cpu_hemicube() {
     };
     let never = AtomicBool::new(false);
     let mut cpu =
-        ProgressiveSolver::new(cornell(), cornell_config(FormFactorMethod::Hemicube, None)).expect("cpu");
+        ProgressiveSolver::new(cornell(), cornell_config(FormFactorMethod::Hemicube, None))
+            .expect("cpu");
     cpu.run(&stop, &never, &mut |_| {});
     let mut on_gpu = ProgressiveSolver::new(
         cornell(),
@@ -185,7 +190,11 @@ fn gpu_hemicube_solves_the_cornell_box_like_the_cpu_hemicube() {
     .expect("gpu");
     on_gpu.run(&stop, &never, &mut |_| {});
     let (a, b) = (cpu.radiosity(), on_gpu.radiosity());
-    let num: f64 = a.iter().zip(b).map(|(x, y)| (*x - *y).length_squared()).sum();
+    let num: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).length_squared())
+        .sum();
     let den: f64 = a.iter().map(|x| x.length_squared()).sum();
     let rel = (num / den).sqrt();
     eprintln!(
@@ -197,7 +206,11 @@ fn gpu_hemicube_solves_the_cornell_box_like_the_cpu_hemicube() {
 
     // Without a rasteriser the method is refused, not silently replaced.
     assert!(
-        ProgressiveSolver::new(cornell(), cornell_config(FormFactorMethod::GpuHemicube, None)).is_err()
+        ProgressiveSolver::new(
+            cornell(),
+            cornell_config(FormFactorMethod::GpuHemicube, None)
+        )
+        .is_err()
     );
 
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/formfactors.json");
@@ -210,8 +223,13 @@ fn gpu_hemicube_solves_the_cornell_box_like_the_cpu_hemicube() {
             continue; // 128-gons: slow on a software rasteriser, nothing new.
         }
         let c = cases::evaluate(&case, FormFactorMethod::Hemicube, &params);
-        let g = cases::evaluate_with(&case, FormFactorMethod::GpuHemicube, &params, Some(&*raster))
-            .expect("gpu case");
+        let g = cases::evaluate_with(
+            &case,
+            FormFactorMethod::GpuHemicube,
+            &params,
+            Some(&*raster),
+        )
+        .expect("gpu case");
         // One edge pixel differing in one of the 36 hemicubes per triangle of A1 moves the
         // mean by up to a pixel's delta form factor / 72.
         let pixel = (2.0 / 128.0f64).powi(2) / std::f64::consts::PI;

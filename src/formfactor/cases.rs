@@ -7,11 +7,11 @@ use std::path::Path;
 use glam::DVec3;
 use serde::Deserialize;
 
+use super::hemicube::{ItemBufferRaster, RasterError};
 use super::{
     FormFactorMethod, FormFactorParams, PolygonSampler, contour, exact, hemicube, hybrid,
     montecarlo, occluded_point_to_polygon, raycast,
 };
-use super::hemicube::{ItemBufferRaster, RasterError};
 use crate::geometry::bvh::TriangleInput;
 use crate::geometry::sampling::hash_seed;
 use crate::geometry::{Bvh, Rng, polygon};
@@ -253,7 +253,13 @@ fn hemicube_case(
     // For a rasteriser: A2's pieces draw id 0, the occluders block.
     let all: Vec<Vec<DVec3>> = a2_pieces.iter().chain(&occ_pieces).cloned().collect();
     let ids: Vec<u32> = (0..all.len())
-        .map(|k| if k < a2_pieces.len() { 0 } else { hemicube::NONE })
+        .map(|k| {
+            if k < a2_pieces.len() {
+                0
+            } else {
+                hemicube::NONE
+            }
+        })
         .collect();
     let key = hash_seed(
         &all.iter()

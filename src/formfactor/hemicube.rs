@@ -255,7 +255,10 @@ impl<'t> Hemicube<'t> {
 
     /// The item buffer, face after face in the layout of [`DeltaTable::deltas`].
     pub fn item_buffer(&self) -> Vec<u32> {
-        self.faces.iter().flat_map(|f| f.ids.iter().copied()).collect()
+        self.faces
+            .iter()
+            .flat_map(|f| f.ids.iter().copied())
+            .collect()
     }
 
     /// Form factor of one id.
@@ -362,9 +365,17 @@ pub fn raster_element_values(
 
 /// The `gpu-hemicube` row: [`row`] with the item buffer from `ctx.raster`. Without a
 /// rasteriser, or when it fails (the error is printed once), the CPU hemicube computes it.
-pub fn raster_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicBool) -> bool {
+pub fn raster_row(
+    ctx: &RowContext,
+    shooter: PatchId,
+    out: &mut [f32],
+    cancel: &AtomicBool,
+) -> bool {
     let table = DeltaTable::new(ctx.params.hemicube_res);
-    let values = match ctx.raster.map(|r| raster_element_values(ctx, r, shooter, &table)) {
+    let values = match ctx
+        .raster
+        .map(|r| raster_element_values(ctx, r, shooter, &table))
+    {
         Some(Ok(v)) => v,
         Some(Err(e)) => {
             static WARNED: std::sync::Once = std::sync::Once::new();
@@ -399,8 +410,9 @@ fn write_row(ctx: &RowContext, shooter: PatchId, values: &[f64], out: &mut [f32]
     }
 }
 
-/// Face coordinates (X, Y, D) of a local point: screen = (X/D, Y/D).
-fn to_face(f: usize, p: &Local) -> [f64; 3] {
+/// Face coordinates (X, Y, D) of a local point on face `f` (0 top, 1–4 sides): screen =
+/// (X/D, Y/D). Each face's map is a signed permutation (lengths are kept).
+pub fn to_face(f: usize, p: &Local) -> [f64; 3] {
     let [u, v, w] = *p;
     match f {
         0 => [u, v, w],

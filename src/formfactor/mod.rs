@@ -300,11 +300,7 @@ fn sampled_visibility(
             }
         }
     }
-    if total > 0.0 {
-        visible / total
-    } else {
-        0.0
-    }
+    if total > 0.0 { visible / total } else { 0.0 }
 }
 
 pub(crate) fn side(rays: u32) -> u32 {

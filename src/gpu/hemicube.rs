@@ -21,7 +21,7 @@ use eframe::egui_wgpu::wgpu;
 use glam::DVec3;
 
 use crate::formfactor::hemicube::{
-    DeltaTable, HemicubeView, ItemBufferRaster, NONE, RasterError,
+    DeltaTable, HemicubeView, ItemBufferRaster, NONE, RasterError, SKIP, to_face,
 };
 
 /// The WGSL source (validated by `tests/viewer_shaders.rs` with naga).
@@ -29,6 +29,10 @@ pub const SHADER_SOURCE: &str = include_str!("../../shaders/hemicube.wgsl");
 
 /// Uniform stride per face (wgpu's minimum dynamic-offset alignment is at most 256).
 const FACE_STRIDE: u64 = 256;
+
+/// Polygons per culling chunk: each face draws only the chunks whose bounding sphere meets
+/// its frustum (a mesh's elements are stored patch by patch, so chunks are compact).
+const CHUNK_POLYGONS: usize = 32;
 
 /// Setting up the GPU failed.
 #[derive(Debug, thiserror::Error)]
@@ -84,10 +88,39 @@ struct State {
 struct Geometry {
     key: u64,
     vertices: wgpu::Buffer,
-    vertex_count: u32,
     polygon_count: usize,
     /// Vertex positions are stored relative to this point (f32 precision near the scene).
     centre: DVec3,
+    chunks: Vec<Chunk>,
+}
+
+/// A run of consecutive polygons with its bounding sphere.
+struct Chunk {
+    polygons: std::ops::Range<usize>,
+    vertices: std::ops::Range<u32>,
+    centre: DVec3,
+    radius: f64,
+}
+
+impl Chunk {
+    /// Whether the sphere may cover pixels of face `f` of `view` (conservative).
+    fn may_show_on(&self, f: usize, view: &HemicubeView) -> bool {
+        let d = self.centre - view.origin;
+        let local = [
+            d.dot(view.axes[0]),
+            d.dot(view.axes[1]),
+            d.dot(view.axes[2]),
+        ];
+        let [x, y, depth] = to_face(f, &local);
+        let r = self.radius;
+        let slanted = r * std::f64::consts::SQRT_2;
+        let below = if f == 0 { y + depth < -slanted } else { y < -r };
+        !(depth + r < view.near
+            || x + depth < -slanted
+            || depth - x < -slanted
+            || depth - y < -slanted
+            || below)
+    }
 }
 
 struct Target {
@@ -102,7 +135,8 @@ impl GpuHemicube {
     /// Opens the first adapter wgpu finds (any backend; `WGPU_BACKEND` narrows it) and
     /// builds the pipeline.
     pub fn new() -> Result<Self, GpuError> {
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
             power_preference: wgpu::PowerPreference::HighPerformance,
             force_fallback_adapter: false,
@@ -268,7 +302,6 @@ impl GpuHemicube {
             )));
         }
         let centre = geometry.centre;
-        let vertex_count = geometry.vertex_count;
         let max_dim = self.device.limits().max_texture_dimension_2d;
         if 3 * res > max_dim {
             return Err(RasterError(format!(
@@ -280,7 +313,11 @@ impl GpuHemicube {
             state.target = Some(self.make_target(res));
         }
         let id_bytes = (ids.len().max(1) * 4) as u64;
-        if state.ids.as_ref().is_none_or(|(_, _, size)| *size < id_bytes) {
+        if state
+            .ids
+            .as_ref()
+            .is_none_or(|(_, _, size)| *size < id_bytes)
+        {
             let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("nusselt hemicube ids"),
                 size: id_bytes,
@@ -297,7 +334,7 @@ impl GpuHemicube {
                             buffer: &self.uniforms,
                             offset: 0,
                             size: std::num::NonZeroU64::new(
-                                std::mem::size_of::<FaceUniform>() as u64,
+                                std::mem::size_of::<FaceUniform>() as u64
                             ),
                         }),
                     },
@@ -333,7 +370,9 @@ impl GpuHemicube {
         self.queue.write_buffer(&self.uniforms, 0, &faces);
 
         let target = state.target.as_ref().expect("just set");
-        let color_view = target.ids.create_view(&wgpu::TextureViewDescriptor::default());
+        let color_view = target
+            .ids
+            .create_view(&wgpu::TextureViewDescriptor::default());
         let depth_view = target
             .depth
             .create_view(&wgpu::TextureViewDescriptor::default());
@@ -374,12 +413,33 @@ impl GpuHemicube {
             pass.set_pipeline(&self.pipeline);
             let geometry = state.geometry.as_ref().expect("set above");
             pass.set_vertex_buffer(0, geometry.vertices.slice(..));
+            // Chunks with something to draw (not all SKIP), in order.
+            let live: Vec<&Chunk> = geometry
+                .chunks
+                .iter()
+                .filter(|c| ids[c.polygons.clone()].iter().any(|id| *id != SKIP))
+                .collect();
             for f in 0..5u32 {
                 let (y, rows) = face_rows(f, res);
                 pass.set_viewport(0.0, y as f32, res as f32, rows as f32, 0.0, 1.0);
                 pass.set_scissor_rect(0, y, res, rows);
                 pass.set_bind_group(0, bind_group, &[(f as u64 * FACE_STRIDE) as u32]);
-                pass.draw(0..vertex_count, 0..1);
+                // Consecutive visible chunks merge into one draw (order is kept, so depth
+                // ties resolve as on the CPU).
+                let mut run: Option<std::ops::Range<u32>> = None;
+                for c in live.iter().filter(|c| c.may_show_on(f as usize, view)) {
+                    run = match run {
+                        Some(r) if r.end == c.vertices.start => Some(r.start..c.vertices.end),
+                        Some(r) => {
+                            pass.draw(r, 0..1);
+                            Some(c.vertices.clone())
+                        }
+                        None => Some(c.vertices.clone()),
+                    };
+                }
+                if let Some(r) = run {
+                    pass.draw(r, 0..1);
+                }
             }
         }
         encoder.copy_texture_to_buffer(
@@ -456,13 +516,39 @@ impl GpuHemicube {
             bytes.extend_from_slice(&k.to_ne_bytes());
         };
         let mut vertex_count = 0u32;
-        for (k, poly) in polygons.iter().enumerate() {
-            // Convex polygons: a fan.
-            for i in 1..poly.len().saturating_sub(1) {
-                push(poly[0], k as u32);
-                push(poly[i], k as u32);
-                push(poly[i + 1], k as u32);
-                vertex_count += 3;
+        let mut chunks = Vec::new();
+        for first in (0..polygons.len()).step_by(CHUNK_POLYGONS) {
+            let range = first..(first + CHUNK_POLYGONS).min(polygons.len());
+            let start = vertex_count;
+            let (mut clo, mut chi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+            for k in range.clone() {
+                let poly = &polygons[k];
+                // Convex polygons: a fan.
+                for i in 1..poly.len().saturating_sub(1) {
+                    push(poly[0], k as u32);
+                    push(poly[i], k as u32);
+                    push(poly[i + 1], k as u32);
+                    vertex_count += 3;
+                }
+                for p in poly {
+                    clo = clo.min(*p);
+                    chi = chi.max(*p);
+                }
+            }
+            if clo.x.is_finite() {
+                let c = (clo + chi) * 0.5;
+                let radius = range
+                    .clone()
+                    .flat_map(|k| polygons[k].iter())
+                    .map(|p| (*p - c).length())
+                    .fold(0.0, f64::max);
+                chunks.push(Chunk {
+                    polygons: range,
+                    vertices: start..vertex_count,
+                    centre: c,
+                    // f32 positions: a little room.
+                    radius: radius * (1.0 + 1e-5) + 1e-6 * (c - centre).length(),
+                });
             }
         }
         let size = (bytes.len() as u64).max(16);
@@ -478,9 +564,9 @@ impl GpuHemicube {
         Geometry {
             key,
             vertices,
-            vertex_count,
             polygon_count: polygons.len(),
             centre,
+            chunks,
         }
     }
 
