@@ -65,33 +65,65 @@ pub const MIN_HEMICUBE_SHARE: f64 = 0.25;
 /// `min_pixels` even at the patch's nearest distance and face-on, gives it none.
 pub fn hemicube_share_bound(ctx: &RowContext, shooter: PatchId, pixel_solid_angle: f64) -> f64 {
     let mesh = ctx.mesh;
-    let patch = mesh.patch(shooter);
-    let near_radius = ctx.params.hybrid_k * (patch.area / std::f64::consts::PI).sqrt();
-    let mut possible = 0usize;
-    for (k, r) in mesh.patches.iter().enumerate() {
-        if k == shooter.0 as usize {
-            continue;
-        }
-        let bound = r
-            .polygon
-            .iter()
-            .map(|v| (*v - r.centroid).length())
-            .fold(0.0, f64::max);
-        let d = (r.centroid - patch.centroid).length();
-        if d + bound < near_radius {
-            continue;
-        }
-        let elements = &mesh.elements[r.elements.start as usize..r.elements.end as usize];
-        let largest = elements.iter().map(|e| e.area).fold(0.0, f64::max);
-        let nearest = (d - bound).max(0.0);
-        if nearest > 0.0
-            && largest / (nearest * nearest) / pixel_solid_angle < ctx.params.hybrid_min_pixels
-        {
-            continue;
-        }
-        possible += elements.len();
-    }
+    let possible: usize = mesh
+        .patches
+        .iter()
+        .enumerate()
+        .filter(|(k, r)| {
+            *k != shooter.0 as usize
+                && !all_analytic(ctx, mesh.patch(shooter), r, pixel_solid_angle)
+        })
+        .map(|(_, r)| (r.elements.end - r.elements.start) as usize)
+        .sum();
     possible as f64 / mesh.elements.len().max(1) as f64
+}
+
+/// Whether [`analytic`] holds for every element of `receiver` (decided from its bounding
+/// sphere and largest element; `false` means "perhaps not").
+fn all_analytic(
+    ctx: &RowContext,
+    shooter: &crate::mesh::Patch,
+    receiver: &crate::mesh::Patch,
+    pixel_solid_angle: f64,
+) -> bool {
+    let near_radius = ctx.params.hybrid_k * (shooter.area / std::f64::consts::PI).sqrt();
+    let d = (receiver.centroid - shooter.centroid).length();
+    if d + receiver.radius < near_radius {
+        return true;
+    }
+    let nearest = (d - receiver.radius).max(0.0);
+    nearest > 0.0
+        && receiver.largest_element_area / (nearest * nearest) / pixel_solid_angle
+            < ctx.params.hybrid_min_pixels
+}
+
+/// The number of receiving elements [`analytic`] gives the hemicube: per-element tests only
+/// on the patches [`all_analytic`] cannot decide.
+fn hemicube_count(ctx: &RowContext, shooter: PatchId, emitter: bool, omega: f64) -> usize {
+    let mesh = ctx.mesh;
+    let patch = mesh.patch(shooter);
+    mesh.patches
+        .iter()
+        .enumerate()
+        .filter(|(k, r)| *k != shooter.0 as usize && !all_analytic(ctx, patch, r, omega))
+        .map(|(_, r)| {
+            mesh.elements[r.elements.start as usize..r.elements.end as usize]
+                .iter()
+                .filter(|e| {
+                    !analytic(
+                        ctx.params,
+                        omega,
+                        emitter,
+                        patch.centroid,
+                        patch.area,
+                        e.centroid,
+                        e.normal,
+                        e.area,
+                    )
+                })
+                .count()
+        })
+        .sum()
 }
 
 /// `out[j] = F_ji`: contour values for analytic receivers, hemicube values for the rest.
@@ -99,14 +131,18 @@ pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicB
     let mesh = ctx.mesh;
     let patch = mesh.patch(shooter);
     let emitter = ctx.scene.materials[patch.material.0 as usize].is_emitter();
-    // Built only when the hemicube is used (it is a fixed cost per row).
     let omega = DeltaTable::pixel_solid_angle_at(ctx.params.hemicube_res);
-    if emitter || hemicube_share_bound(ctx, shooter, omega) < MIN_HEMICUBE_SHARE {
-        // Every receiver is analytic, or too few could use the hemicube for it to pay: exactly
-        // the contour row, without the per-element rule.
+    // The hemicube costs a whole raster per shot; when it would serve only a small share of
+    // the receivers, the contour method for all of them is cheaper and never less accurate.
+    // Counted without allocating, patch by patch, so that this case costs the contour row
+    // plus a pass over the patches.
+    if emitter
+        || (hemicube_count(ctx, shooter, emitter, omega) as f64)
+            < MIN_HEMICUBE_SHARE * mesh.elements.len() as f64
+    {
         return super::compute_row(super::FormFactorMethod::Contour, ctx, shooter, out, cancel);
     }
-    let mut is_analytic: Vec<bool> = mesh
+    let is_analytic: Vec<bool> = mesh
         .elements
         .par_iter()
         .map(|e| {
@@ -122,18 +158,9 @@ pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicB
             )
         })
         .collect();
-    // The hemicube costs a whole raster per shot; when it would serve only a small share of
-    // the receivers, the contour method for all of them is cheaper and never less accurate.
-    let served = is_analytic.iter().filter(|a| !**a).count();
-    let cube = if (served as f64) < MIN_HEMICUBE_SHARE * is_analytic.len() as f64 {
-        is_analytic.iter_mut().for_each(|a| *a = true);
-        None
-    } else {
-        let table = DeltaTable::new(ctx.params.hemicube_res);
-        match hemicube::element_values(ctx, shooter, &table, cancel) {
-            Some(v) => Some(v),
-            None => return false,
-        }
+    let table = DeltaTable::new(ctx.params.hemicube_res);
+    let Some(cube) = hemicube::element_values(ctx, shooter, &table, cancel) else {
+        return false;
     };
     let setup = ShotSetup::new(ctx, shooter);
     patch_slices(mesh, out)
@@ -147,13 +174,11 @@ pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicB
             if is_analytic[range.clone()].iter().any(|a| *a) {
                 contour_patch(ctx, shooter, &setup, k, slice);
             }
-            if let Some(values) = &cube {
-                for (i, f) in slice.iter_mut().enumerate() {
-                    let j = first + i;
-                    if !is_analytic[j] {
-                        let e = &mesh.elements[j];
-                        *f = (values[j] * patch.area / e.area) as f32;
-                    }
+            for (i, f) in slice.iter_mut().enumerate() {
+                let j = first + i;
+                if !is_analytic[j] {
+                    let e = &mesh.elements[j];
+                    *f = (cube[j] * patch.area / e.area) as f32;
                 }
             }
         });

@@ -59,6 +59,10 @@ pub struct Patch {
     pub elements: Range<u32>,
     /// True for the back side of a two-sided face.
     pub back: bool,
+    /// Largest distance from the centroid to a corner (bounding sphere radius).
+    pub radius: f64,
+    /// Area of the patch's largest element.
+    pub largest_element_area: f64,
 }
 
 #[derive(Clone, Debug)]
@@ -200,12 +204,21 @@ impl Mesh {
                             area,
                         });
                     });
+                    let centroid = polygon::centroid(&pp);
                     patches.push(Patch {
                         face: fi,
                         source_face: face.source_face,
                         material: face.material,
                         area: polygon::area(&pp),
-                        centroid: polygon::centroid(&pp),
+                        centroid,
+                        radius: pp
+                            .iter()
+                            .map(|v| (*v - centroid).length())
+                            .fold(0.0, f64::max),
+                        largest_element_area: elements[first as usize..]
+                            .iter()
+                            .map(|e| e.area)
+                            .fold(0.0, f64::max),
                         polygon: pp,
                         normal: pn,
                         elements: first..elements.len() as u32,
