@@ -88,8 +88,9 @@ echo
 
 echo "## Equal time: error after a fixed solve time (--seconds T)"
 echo
-echo "Median of 3 runs each (image error, shots in brackets); timing noise moves the shot"
-echo "count by a few per cent from run to run."
+echo "Median of 5 runs each, interleaved (image error, shots in brackets). Around 4 s the"
+echo "solve passes from computing new rows to re-shooting cached ones, so a few per cent of"
+echo "timing noise moves the shot count (and the error) a lot there."
 echo
 echo "| T (s) | contour | hemicube | hybrid | gpu-hemicube |"
 echo "|---:|---:|---:|---:|---:|"
@@ -97,7 +98,7 @@ for t in 1 2 4; do
     row="| $t |"
     for m in contour hemicube hybrid gpu-hemicube; do
         runs=""
-        for rep in 1 2 3; do
+        for rep in 1 2 3 4 5; do
             runs="$runs $(render --formfactor "$m" --seconds "$t" | tr -d ' ')"
         done
         row="$row $(python3 - $runs <<'PY'
@@ -109,6 +110,22 @@ PY
 ) |"
     done
     echo "$row"
+done
+echo
+
+echo "## Equal work: solve seconds for the first 1000 shots (5 runs each, interleaved)"
+echo
+echo "| method | runs (s) | median (s) |"
+echo "|---|---|---:|"
+declare -A work
+for rep in 1 2 3 4 5; do
+    for m in contour hybrid; do
+        work[$m]="${work[$m]:-} $("$bin" render --builtin cornell --width 64 --height 64 --spp 1 --formfactor "$m" --shots 1000 --json --quiet --out "$out/w.pfm" | python3 -c 'import json,sys; print("%.3f" % json.load(sys.stdin)["solve_seconds"])')"
+    done
+done
+for m in contour hybrid; do
+    # shellcheck disable=SC2086
+    echo "| $m | ${work[$m]} | $(python3 -c 'import statistics,sys; print("%.3f" % statistics.median(map(float, sys.argv[1:])))' ${work[$m]}) |"
 done
 echo
 
