@@ -88,7 +88,7 @@ echo
 
 echo "## Equal time: error after a fixed solve time (--seconds T)"
 echo
-echo "Median of 5 runs each, interleaved (image error, shots in brackets). Around 4 s the"
+echo "Median of 5 runs each (image error, shots in brackets). Around 4 s the"
 echo "solve passes from computing new rows to re-shooting cached ones, so a few per cent of"
 echo "timing noise moves the shot count (and the error) a lot there."
 echo
