@@ -66,15 +66,7 @@ fn solve(c: &mut Criterion) {
         b.iter(|| {
             // A fresh solver per row would measure meshing; compute the row directly.
             let mut out = vec![0f32; solver.mesh().elements.len()];
-            let params = solver.config().formfactor.clone();
-            let ctx = nusselt::formfactor::RowContext {
-                scene: solver.scene(),
-                mesh: solver.mesh(),
-                bvh: solver.bvh(),
-                params: &params,
-                epsilon: 1e-3,
-                raster: None,
-            };
+            let ctx = solver.row_context();
             nusselt::formfactor::compute_row(
                 solver.config().method,
                 &ctx,

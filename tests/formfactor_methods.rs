@@ -437,7 +437,7 @@ fn the_cli_takes_every_method_and_its_parameters() {
 #[test]
 fn hybrid_share_bound_is_an_upper_bound() {
     use nusselt::formfactor::hemicube::DeltaTable;
-    use nusselt::formfactor::{RowContext, hybrid};
+    use nusselt::formfactor::hybrid;
     use nusselt::mesh::PatchId;
     for (k, min_pixels, res) in [(5.0, 64.0, 256), (2.0, 0.0, 256), (1.0, 4.0, 64)] {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
@@ -455,14 +455,7 @@ fn hybrid_share_bound_is_an_upper_bound() {
         let solver = ProgressiveSolver::new(scene, config).expect("solver");
         let mesh = solver.mesh();
         let params = solver.config().formfactor.clone();
-        let ctx = RowContext {
-            scene: solver.scene(),
-            mesh,
-            bvh: solver.bvh(),
-            params: &params,
-            epsilon: 1e-3,
-            raster: None,
-        };
+        let ctx = solver.row_context();
         let omega = DeltaTable::pixel_solid_angle_at(res);
         let mut below = 0;
         for (i, patch) in mesh.patches.iter().enumerate() {
@@ -501,20 +494,12 @@ fn hybrid_share_bound_is_an_upper_bound() {
 /// contour rows, bit for bit: at equal time it can only differ by timing noise.
 #[test]
 fn hybrid_rows_are_the_contour_rows_on_the_default_cornell_mesh() {
-    use nusselt::formfactor::{RowContext, compute_row};
+    use nusselt::formfactor::compute_row;
     use nusselt::mesh::PatchId;
     let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
     let solver = ProgressiveSolver::new(scene, SolverConfig::default()).expect("solver");
     let mesh = solver.mesh();
-    let params = solver.config().formfactor.clone();
-    let ctx = RowContext {
-        scene: solver.scene(),
-        mesh,
-        bvh: solver.bvh(),
-        params: &params,
-        epsilon: 1e-6 * mesh.bounds().diagonal(),
-        raster: None,
-    };
+    let ctx = solver.row_context();
     let never = AtomicBool::new(false);
     let n = mesh.elements.len();
     // Patches spread over every wall, the light and the boxes.

@@ -10,7 +10,7 @@ use glam::DVec3;
 use nusselt::formfactor::hemicube::{
     self, DeltaTable, Hemicube, HemicubeView, ItemBufferRaster, NONE,
 };
-use nusselt::formfactor::{FormFactorMethod, FormFactorParams, RowContext, cases};
+use nusselt::formfactor::{FormFactorMethod, FormFactorParams, cases};
 use nusselt::gpu::GpuHemicube;
 use nusselt::mesh::PatchId;
 use nusselt::scene::{LoadOptions, Scene};
@@ -62,14 +62,7 @@ fn gpu_item_buffer_matches_the_cpu_hemicube() {
             .expect("solver");
     let mesh = solver.mesh();
     let params = solver.config().formfactor.clone();
-    let ctx = RowContext {
-        scene: solver.scene(),
-        mesh,
-        bvh: solver.bvh(),
-        params: &params,
-        epsilon: 1e-6 * mesh.bounds().diagonal(),
-        raster: None,
-    };
+    let ctx = solver.row_context();
     let table = DeltaTable::new(params.hemicube_res);
     let never = AtomicBool::new(false);
     let (mut pixels, mut differing) = (0usize, 0usize);

@@ -34,35 +34,61 @@ fn every_shader_validates() {
     assert!(count >= 1, "no shaders found in {}", dir.display());
 }
 
-#[test]
-fn viewport_shader_matches_the_rust_side() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders/viewport.wgsl");
+/// The shader file is the embedded source, has the entry points, and its uniform struct has
+/// the size of the Rust struct uploaded into it.
+fn check_shader(
+    file: &str,
+    embedded: &str,
+    entry_points: &[&str],
+    uniform: &str,
+    rust_size: usize,
+) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("shaders")
+        .join(file);
     let module = validate(&path);
-    // The embedded copy is the file.
-    assert_eq!(
-        nusselt::viewer::render::SHADER_SOURCE,
-        std::fs::read_to_string(&path).expect("read")
-    );
+    assert_eq!(embedded, std::fs::read_to_string(&path).expect("read"));
     let names: Vec<&str> = module
         .entry_points
         .iter()
         .map(|e| e.name.as_str())
         .collect();
-    for want in ["vs_mesh", "fs_mesh", "vs_line", "fs_line"] {
-        assert!(names.contains(&want), "{want} missing: {names:?}");
+    for want in entry_points {
+        assert!(names.contains(want), "{want} missing: {names:?}");
     }
-    let (_, uniforms) = module
+    let (_, ty) = module
         .types
         .iter()
-        .find(|(_, t)| t.name.as_deref() == Some("Uniforms"))
-        .expect("Uniforms struct");
-    let naga::TypeInner::Struct { span, .. } = &uniforms.inner else {
-        panic!("Uniforms is not a struct");
+        .find(|(_, t)| t.name.as_deref() == Some(uniform))
+        .unwrap_or_else(|| panic!("{uniform} struct missing"));
+    let naga::TypeInner::Struct { span, .. } = &ty.inner else {
+        panic!("{uniform} is not a struct");
     };
     assert_eq!(
-        *span as usize,
+        *span as usize, rust_size,
+        "{uniform}: block size differs between WGSL and Rust"
+    );
+}
+
+#[test]
+fn viewport_shader_matches_the_rust_side() {
+    check_shader(
+        "viewport.wgsl",
+        nusselt::viewer::render::SHADER_SOURCE,
+        &["vs_mesh", "fs_mesh", "vs_line", "fs_line"],
+        "Uniforms",
         std::mem::size_of::<nusselt::viewer::render::Uniforms>(),
-        "uniform block size differs between WGSL and Rust"
+    );
+}
+
+#[test]
+fn hemicube_shader_matches_the_rust_side() {
+    check_shader(
+        "hemicube.wgsl",
+        nusselt::gpu::hemicube::SHADER_SOURCE,
+        &["vs_main", "fs_main"],
+        "Face",
+        std::mem::size_of::<nusselt::gpu::hemicube::FaceUniform>(),
     );
 }
 
@@ -80,35 +106,4 @@ fn a_broken_shader_is_rejected() {
         .is_ok()
     });
     assert!(!matches!(valid, Ok(true)));
-}
-
-#[test]
-fn hemicube_shader_matches_the_rust_side() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders/hemicube.wgsl");
-    let module = validate(&path);
-    assert_eq!(
-        nusselt::gpu::hemicube::SHADER_SOURCE,
-        std::fs::read_to_string(&path).expect("read")
-    );
-    let names: Vec<&str> = module
-        .entry_points
-        .iter()
-        .map(|e| e.name.as_str())
-        .collect();
-    for want in ["vs_main", "fs_main"] {
-        assert!(names.contains(&want), "{want} missing: {names:?}");
-    }
-    let (_, face) = module
-        .types
-        .iter()
-        .find(|(_, t)| t.name.as_deref() == Some("Face"))
-        .expect("Face struct");
-    let naga::TypeInner::Struct { span, .. } = &face.inner else {
-        panic!("Face is not a struct");
-    };
-    assert_eq!(
-        *span as usize,
-        std::mem::size_of::<nusselt::gpu::hemicube::FaceUniform>(),
-        "uniform block size differs between WGSL and Rust"
-    );
 }

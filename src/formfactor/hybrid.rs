@@ -97,6 +97,26 @@ fn all_analytic(
             < ctx.params.hybrid_min_pixels
 }
 
+/// [`analytic`] for an element receiving from `shooter`.
+fn element_analytic(
+    ctx: &RowContext,
+    shooter: &crate::mesh::Patch,
+    emitter: bool,
+    omega: f64,
+    e: &crate::mesh::Element,
+) -> bool {
+    analytic(
+        ctx.params,
+        omega,
+        emitter,
+        shooter.centroid,
+        shooter.area,
+        e.centroid,
+        e.normal,
+        e.area,
+    )
+}
+
 /// The number of receiving elements [`analytic`] gives the hemicube: per-element tests only
 /// on the patches [`all_analytic`] cannot decide.
 fn hemicube_count(ctx: &RowContext, shooter: PatchId, emitter: bool, omega: f64) -> usize {
@@ -109,18 +129,7 @@ fn hemicube_count(ctx: &RowContext, shooter: PatchId, emitter: bool, omega: f64)
         .map(|(_, r)| {
             mesh.elements[r.elements.start as usize..r.elements.end as usize]
                 .iter()
-                .filter(|e| {
-                    !analytic(
-                        ctx.params,
-                        omega,
-                        emitter,
-                        patch.centroid,
-                        patch.area,
-                        e.centroid,
-                        e.normal,
-                        e.area,
-                    )
-                })
+                .filter(|e| !element_analytic(ctx, patch, emitter, omega, e))
                 .count()
         })
         .sum()
@@ -145,18 +154,7 @@ pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicB
     let is_analytic: Vec<bool> = mesh
         .elements
         .par_iter()
-        .map(|e| {
-            analytic(
-                ctx.params,
-                omega,
-                emitter,
-                patch.centroid,
-                patch.area,
-                e.centroid,
-                e.normal,
-                e.area,
-            )
-        })
+        .map(|e| element_analytic(ctx, patch, emitter, omega, e))
         .collect();
     let table = DeltaTable::new(ctx.params.hemicube_res);
     let Some(cube) = hemicube::element_values(ctx, shooter, &table, cancel) else {

@@ -326,19 +326,25 @@ impl ProgressiveSolver {
         best.map(|b| PatchId(b.1 as u32))
     }
 
-    fn row(&mut self, shooter: PatchId, cancel: &AtomicBool) -> Option<Arc<[f32]>> {
-        if let Some(r) = &self.rows[shooter.0 as usize] {
-            return Some(r.clone());
-        }
-        let mut out = vec![0f32; self.mesh.elements.len()];
-        let ctx = RowContext {
+    /// What a form-factor row of this solver sees (its scene, mesh, BVH, parameters, shadow-ray
+    /// offset and rasteriser), for computing rows outside [`shoot`](Self::shoot).
+    pub fn row_context(&self) -> RowContext<'_> {
+        RowContext {
             scene: &self.scene,
             mesh: &self.mesh,
             bvh: &self.bvh,
             params: &self.config.formfactor,
             epsilon: self.epsilon,
             raster: self.config.raster.as_deref(),
-        };
+        }
+    }
+
+    fn row(&mut self, shooter: PatchId, cancel: &AtomicBool) -> Option<Arc<[f32]>> {
+        if let Some(r) = &self.rows[shooter.0 as usize] {
+            return Some(r.clone());
+        }
+        let mut out = vec![0f32; self.mesh.elements.len()];
+        let ctx = self.row_context();
         if !formfactor::compute_row(self.config.method, &ctx, shooter, &mut out, cancel) {
             return None;
         }
