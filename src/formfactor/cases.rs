@@ -9,8 +9,8 @@ use serde::Deserialize;
 
 use super::hemicube::{ItemBufferRaster, RasterError};
 use super::{
-    FormFactorMethod, FormFactorParams, PolygonSampler, contour, exact, hemicube, hybrid,
-    montecarlo, occluded_point_to_polygon, raycast,
+    FormFactorMethod, FormFactorParams, MAX_EXACT_BLOCKERS, PolygonSampler, contour, exact,
+    hemicube, hybrid, montecarlo, occluded_point_to_polygon, raycast,
 };
 use crate::geometry::bvh::TriangleInput;
 use crate::geometry::sampling::hash_seed;
@@ -122,9 +122,14 @@ pub fn evaluate_with(
     let m = ((params.visibility_rays.max(1) as f64).sqrt().round() as u32).max(1);
     let eps = 1e-9 * scale.max(1e-12);
     let sampler = PolygonSampler::new(&a2);
+    // Like the solver's contour rows: few blockers have their shadows clipped away exactly,
+    // many are sampled with weighted shadow rays.
+    let few_blockers = bvh.triangle_count() <= MAX_EXACT_BLOCKERS;
     let point_value = |p: DVec3, n: DVec3, rng: &mut Rng| {
         if occluders.is_empty() {
             contour::point_to_polygon(p, n, &a2)
+        } else if few_blockers {
+            exact::point_to_visible_polygon(p, n, &a2, &occluders)
         } else {
             occluded_point_to_polygon(&bvh, p, n, &a2, &sampler, m, false, eps, [u32::MAX; 2], rng)
         }
@@ -143,8 +148,15 @@ pub fn evaluate_with(
             if let Some((p, n)) = point {
                 return Ok(point_value(p, n, &mut rng));
             }
-            // Sampled visibility is noisy: refine a fixed few levels only, not to 1e-10.
-            let depth = if occluders.is_empty() { 14 } else { 2 };
+            // Clipped shadows have kinks, sampled visibility is noisy: refine a bounded number of
+            // levels, not to 1e-10.
+            let depth = if occluders.is_empty() {
+                14
+            } else if few_blockers {
+                params.cubature_depth
+            } else {
+                2
+            };
             integrate_over(&a1, depth, &mut |p, n| point_value(p, n, &mut rng))
         }
         FormFactorMethod::Exact => {

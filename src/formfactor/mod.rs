@@ -4,12 +4,15 @@
 //! form factor `F_ji` from (a point of) `j` to the whole of `i`, so that
 //! `ΔB_j = ρ_j ΔB_i F_ji` (Cohen, Chen, Wallace, Greenberg 1988). The default method,
 //! `contour`, evaluates Lambert's exact point-to-polygon formula at the element's centroid
-//! and multiplies it by the visible fraction of stratified shadow rays from that point to the
-//! patch, each ray weighted by its point-to-point form factor (Wallace, Elmquist, Haines 1989,
-//! "A ray tracing algorithm for progressive radiosity"). Known error: the visibility fraction
-//! is exact for fully visible or fully hidden pairs and has stratified-sampling noise
-//! O(N^-3/4) in penumbrae; the centroid rule integrates over the receiving element with O(h²)
-//! error.
+//! and deals with blockers in three tiers: triangles outside the pair's shaft (Haines &
+//! Wallace 1994) cannot block, so most pairs need no ray at all; when up to
+//! `MAX_EXACT_BLOCKERS` triangles cut the point's own pyramid to the patch, and four probe
+//! rays disagree, their shadows are subtracted from the patch polygon and Lambert's formula
+//! integrates the visible rest exactly ([`exact::point_to_visible_polygon`]); with more, the
+//! visible fraction of stratified shadow rays is used, each weighted by its point-to-point
+//! form factor (Wallace, Elmquist, Haines 1989). Known error: the probe can miss a blocker
+//! smaller than its ray spacing; the sampled tier has stratified noise O(N^-3/4) in
+//! penumbrae; the centroid rule integrates over the receiving element with O(h²) error.
 
 pub mod cases;
 pub mod contour;
@@ -274,12 +277,7 @@ fn sampled_visibility(
     };
     if probe && m > 2 {
         // A 2×2 stratified probe; if it agrees, take it (4 rays instead of m²).
-        let mut seen = 0;
-        for k in 0..4u32 {
-            let u1 = ((k % 2) as f64 + rng.next_f64()) / 2.0;
-            let u2 = ((k / 2) as f64 + rng.next_f64()) / 2.0;
-            seen += u32::from(!blocked(&ray_to(u1, u2)));
-        }
+        let seen = probe_rays(&blocked, origin, target, epsilon, rng);
         if seen == 0 || seen == 4 {
             return seen as f64 / 4.0;
         }
@@ -301,6 +299,24 @@ fn sampled_visibility(
         }
     }
     if total > 0.0 { visible / total } else { 0.0 }
+}
+
+/// How many of 2×2 stratified rays from `origin` to the target (lifted `epsilon`) arrive.
+fn probe_rays(
+    blocked: impl Fn(&Ray) -> bool,
+    origin: DVec3,
+    target: &PolygonSampler,
+    epsilon: f64,
+    rng: &mut Rng,
+) -> u32 {
+    let mut seen = 0;
+    for k in 0..4u32 {
+        let u1 = ((k % 2) as f64 + rng.next_f64()) / 2.0;
+        let u2 = ((k / 2) as f64 + rng.next_f64()) / 2.0;
+        let y = target.point(u1, u2) + target.normal() * epsilon;
+        seen += u32::from(!blocked(&Ray::new(origin, y - origin)));
+    }
+    seen
 }
 
 pub(crate) fn side(rays: u32) -> u32 {
@@ -511,7 +527,7 @@ pub(crate) fn contour_patch(
             *f = analytic.max(0.0) as f32;
             continue;
         }
-        let v = element_visibility(
+        *f = match element_visibility(
             ctx,
             e.centroid,
             e.normal,
@@ -521,10 +537,24 @@ pub(crate) fn contour_patch(
             setup.probe,
             &candidates,
             &mut rng,
-        );
-        *f = (analytic * v) as f32;
+        ) {
+            Visibility::Fraction(v) => (analytic * v) as f32,
+            Visibility::Exact(value) => value as f32,
+        };
     }
 }
+
+/// What [`element_visibility`] found.
+enum Visibility {
+    /// Multiply Lambert's unoccluded value by this.
+    Fraction(f64),
+    /// The form factor to the visible part itself.
+    Exact(f64),
+}
+
+/// At most this many blockers cutting a point's pyramid: their shadows are clipped away
+/// exactly ([`exact::point_to_visible_polygon`]); more, and the rays decide.
+pub(crate) const MAX_EXACT_BLOCKERS: usize = 12;
 
 fn contour_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicBool) -> bool {
     let setup = ShotSetup::new(ctx, shooter);
@@ -542,10 +572,11 @@ fn contour_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &Ato
 /// More candidate blockers than this in a patch pair's shaft: use the BVH instead.
 const MAX_SHAFT_CANDIDATES: usize = 48;
 
-/// Visible fraction of the shooter from a receiving point, given the only triangles that
-/// can block (`candidates`, from the receiving patch's shaft): if none of them cuts the
-/// point's own pyramid to the (clipped) shooter the answer is exactly 1 without a ray;
-/// otherwise stratified rays are tested against the candidates alone.
+/// The shooter as seen from a receiving point, given the only triangles that can block
+/// (`candidates`, from the receiving patch's shaft): if none of them cuts the point's own
+/// pyramid to the (clipped) shooter it is fully visible, without a ray; if a few do, their
+/// shadows are subtracted from the shooter polygon and Lambert's formula integrates what is
+/// left (exact, no noise); with many, stratified rays are tested against them alone.
 #[allow(clippy::too_many_arguments)]
 fn element_visibility(
     ctx: &RowContext,
@@ -557,7 +588,7 @@ fn element_visibility(
     probe: bool,
     candidates: &[u32],
     rng: &mut Rng,
-) -> f64 {
+) -> Visibility {
     let above = patch.polygon.iter().all(|v| (*v - x).dot(nx) >= 0.0);
     let clipped;
     let (poly, part) = if above {
@@ -574,10 +605,34 @@ fn element_visibility(
         .filter(|&k| !pyramid.excludes_triangle(ctx.bvh.stored_triangle(k)))
         .collect();
     if cutting.is_empty() {
-        return 1.0;
+        return Visibility::Fraction(1.0);
+    }
+    if cutting.len() <= MAX_EXACT_BLOCKERS {
+        if probe {
+            // Four rays first: when they agree (all arrive or none do) take that, as the
+            // sampled estimate would; clip shadows only where they disagree.
+            let target = part.as_ref().unwrap_or(sampler);
+            let seen = probe_rays(
+                |ray| ctx.bvh.any_hit_among(&cutting, ray, 1e-9, 1.0 - 1e-9),
+                origin,
+                target,
+                ctx.epsilon,
+                rng,
+            );
+            if seen == 0 || seen == 4 {
+                return Visibility::Fraction(seen as f64 / 4.0);
+            }
+        }
+        let blockers: Vec<Vec<DVec3>> = cutting
+            .iter()
+            .map(|&k| ctx.bvh.stored_triangle(k).to_vec())
+            .collect();
+        let value = exact::point_to_visible_polygon(origin, nx, &patch.polygon, &blockers);
+        debug_assert!(value.is_finite());
+        return Visibility::Exact(value.max(0.0));
     }
     let target = part.as_ref().unwrap_or(sampler);
-    sampled_visibility(
+    Visibility::Fraction(sampled_visibility(
         |ray| ctx.bvh.any_hit_among(&cutting, ray, 1e-9, 1.0 - 1e-9),
         origin,
         nx,
@@ -586,5 +641,5 @@ fn element_visibility(
         probe,
         ctx.epsilon,
         rng,
-    )
+    ))
 }
