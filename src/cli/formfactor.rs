@@ -1,5 +1,6 @@
 //! `nusselt formfactor CASES.json --method M`: one JSON line per case.
 
+use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -47,15 +48,16 @@ pub fn run(args: &FormfactorArgs) -> Result<()> {
         ..args.method_args.params()
     };
     let raster = super::render::raster_for(method)?;
+    let mut stdout = std::io::stdout().lock();
     for case in &list {
         let start = Instant::now();
         let value = cases::evaluate_with(case, method, &params, raster.as_deref())
             .with_context(|| format!("{}: case '{}'", args.cases.display(), case.name))?;
         let seconds = start.elapsed().as_secs_f64();
-        println!(
-            "{}",
-            serde_json::json!({"name": case.name, "method": method.name(), "value": value, "seconds": seconds})
-        );
+        let line = serde_json::json!({"name": case.name, "method": method.name(), "value": value, "seconds": seconds});
+        if writeln!(stdout, "{line}").is_err() {
+            break; // The reader went away (e.g. `| head`): nothing more to say.
+        }
     }
     Ok(())
 }

@@ -96,6 +96,10 @@ pub struct MethodArgs {
     /// Hybrid: receivers expected to cover fewer hemicube pixels than this are analytic.
     #[arg(long, allow_negative_numbers = true, default_value_t = FormFactorParams::default().hybrid_min_pixels)]
     pub hybrid_min_pixels: f64,
+    /// Contour: up to this many blockers between a point and a patch have their shadows
+    /// clipped away exactly; more are sampled with shadow rays (0: always sample).
+    #[arg(long, default_value_t = FormFactorParams::default().exact_blockers)]
+    pub exact_blockers: usize,
 }
 
 impl MethodArgs {
@@ -119,6 +123,7 @@ impl MethodArgs {
             hemicube_rotate: !self.no_hemicube_rotate,
             hybrid_k: self.hybrid_k,
             hybrid_min_pixels: self.hybrid_min_pixels,
+            exact_blockers: self.exact_blockers,
             ..Default::default()
         }
     }

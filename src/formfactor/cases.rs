@@ -9,8 +9,8 @@ use serde::Deserialize;
 
 use super::hemicube::{ItemBufferRaster, RasterError};
 use super::{
-    FormFactorMethod, FormFactorParams, MAX_EXACT_BLOCKERS, PolygonSampler, contour, exact,
-    hemicube, hybrid, montecarlo, occluded_point_to_polygon, raycast,
+    FormFactorMethod, FormFactorParams, PolygonSampler, contour, exact, hemicube, hybrid,
+    montecarlo, occluded_point_to_polygon, raycast,
 };
 use crate::geometry::bvh::TriangleInput;
 use crate::geometry::sampling::hash_seed;
@@ -124,7 +124,7 @@ pub fn evaluate_with(
     let sampler = PolygonSampler::new(&a2);
     // Like the solver's contour rows: few blockers have their shadows clipped away exactly,
     // many are sampled with weighted shadow rays.
-    let few_blockers = bvh.triangle_count() <= MAX_EXACT_BLOCKERS;
+    let few_blockers = bvh.triangle_count() <= params.exact_blockers;
     let point_value = |p: DVec3, n: DVec3, rng: &mut Rng| {
         if occluders.is_empty() {
             contour::point_to_polygon(p, n, &a2)
