@@ -5,14 +5,15 @@
 //! `ΔB_j = ρ_j ΔB_i F_ji` (Cohen, Chen, Wallace, Greenberg 1988). The default method,
 //! `contour`, evaluates Lambert's exact point-to-polygon formula at the element's centroid
 //! and deals with blockers in three tiers: triangles outside the pair's shaft (Haines &
-//! Wallace 1994) cannot block, so most pairs need no ray at all; when up to
-//! `exact_blockers` (12) triangles cut the point's own pyramid to the patch, and four probe
-//! rays disagree, their shadows are subtracted from the patch polygon and Lambert's formula
-//! integrates the visible rest exactly ([`exact::point_to_visible_polygon`]); with more, the
-//! visible fraction of stratified shadow rays is used, each weighted by its point-to-point
-//! form factor (Wallace, Elmquist, Haines 1989). Known error: the probe can miss a blocker
-//! smaller than its ray spacing; the sampled tier has stratified noise O(N^-3/4) in
-//! penumbrae; the centroid rule integrates over the receiving element with O(h²) error.
+//! Wallace 1994) cannot block, so most pairs need no ray at all; for a light source (or with
+//! probing off), when up to `exact_blockers` (12) triangles cut the point's own pyramid to
+//! the patch, their shadows are subtracted from the patch polygon and Lambert's formula
+//! integrates the visible rest exactly ([`exact::point_to_visible_polygon`]); otherwise the
+//! visible fraction of stratified shadow rays is used (a 4-ray probe first for non-emitters),
+//! each ray weighted by its point-to-point form factor (Wallace, Elmquist, Haines 1989).
+//! Known error: the probe can miss a blocker smaller than its ray spacing; the sampled tier
+//! has stratified noise O(N^-3/4) in penumbrae; the centroid rule integrates over the
+//! receiving element with O(h²) error.
 
 pub mod cases;
 pub mod contour;
@@ -136,10 +137,10 @@ pub struct FormFactorParams {
     /// `hybrid`: a receiver expected to cover fewer hemicube pixels than this is computed
     /// analytically too (aliasing of small or far patches).
     pub hybrid_min_pixels: f64,
-    /// `contour`: at most this many blockers cutting a point's pyramid have their shadows
-    /// clipped away exactly ([`exact::point_to_visible_polygon`]); more, and weighted shadow
-    /// rays decide. 0 always samples: faster, noisier penumbrae (Cornell default mesh:
-    /// 1.77 % in 4.6 s at 0, 1.72 % in 6.3 s at 12).
+    /// `contour`: for shooters that get every ray (lights; all with `probe_visibility` off),
+    /// at most this many blockers cutting a point's pyramid have their shadows clipped away
+    /// exactly ([`exact::point_to_visible_polygon`]); more, and weighted shadow rays decide.
+    /// 0 always samples.
     pub exact_blockers: usize,
 }
 
@@ -609,22 +610,10 @@ fn element_visibility(
     if cutting.is_empty() {
         return Visibility::Fraction(1.0);
     }
-    if cutting.len() <= ctx.params.exact_blockers {
-        if probe {
-            // Four rays first: when they agree (all arrive or none do) take that, as the
-            // sampled estimate would; clip shadows only where they disagree.
-            let target = part.as_ref().unwrap_or(sampler);
-            let seen = probe_rays(
-                |ray| ctx.bvh.any_hit_among(&cutting, ray, 1e-9, 1.0 - 1e-9),
-                origin,
-                target,
-                ctx.epsilon,
-                rng,
-            );
-            if seen == 0 || seen == 4 {
-                return Visibility::Fraction(seen as f64 / 4.0);
-            }
-        }
+    // Shooters that get every ray (lights, or all with probing off) get exact shadows
+    // instead; the others' penumbrae are sampled (clipping costs more than the 4-ray probe
+    // and the rays it saves: measured in docs/FORMFACTORS.md).
+    if !probe && cutting.len() <= ctx.params.exact_blockers {
         let blockers: Vec<Vec<DVec3>> = cutting
             .iter()
             .map(|&k| ctx.bvh.stored_triangle(k).to_vec())
