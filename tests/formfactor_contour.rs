@@ -6,10 +6,8 @@ use std::path::PathBuf;
 use nusselt::formfactor::cases::{self, Case};
 use nusselt::formfactor::{FormFactorMethod, FormFactorParams};
 
-fn catalogue() -> Vec<Case> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/formfactors.json");
-    cases::load(&p).expect("catalogue")
-}
+mod common;
+use common::{catalogue, json_lines};
 
 fn touching(c: &Case) -> bool {
     c.a1.iter().any(|p| c.a2.iter().any(|q| p == q))
@@ -89,11 +87,7 @@ fn the_cli_prints_one_json_line_per_case() {
         .output()
         .expect("run");
     assert!(out.status.success());
-    let text = String::from_utf8(out.stdout).expect("utf-8");
-    let lines: Vec<serde_json::Value> = text
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("json line"))
-        .collect();
+    let lines = json_lines(out.stdout);
     assert_eq!(lines.len(), catalogue().len());
     for (l, c) in lines.iter().zip(catalogue()) {
         assert_eq!(l["name"], c.name.as_str());

@@ -132,6 +132,16 @@ impl DeltaTable {
         if f == 0 { &self.top } else { &self.side }
     }
 
+    /// Adds the delta form factor of each pixel of face `f` (item buffer `ids`, layout of
+    /// [`deltas`](Self::deltas)) to `out[id]`; ids ≥ `out.len()` and [`NONE`] are skipped.
+    pub fn accumulate_face(&self, f: usize, ids: &[u32], out: &mut [f64]) {
+        for (id, d) in ids.iter().zip(self.deltas(f)) {
+            if let Some(o) = out.get_mut(*id as usize) {
+                *o += d;
+            }
+        }
+    }
+
     /// Sum over the whole hemicube (1 in the limit).
     pub fn sum(&self) -> f64 {
         self.top.iter().sum::<f64>() + 4.0 * self.side.iter().sum::<f64>()
@@ -240,16 +250,7 @@ impl<'t> Hemicube<'t> {
     /// [`NONE`] are skipped).
     pub fn accumulate(&self, out: &mut [f64]) {
         for (f, face) in self.faces.iter().enumerate() {
-            let deltas = if f == 0 {
-                &self.table.top
-            } else {
-                &self.table.side
-            };
-            for (id, d) in face.ids.iter().zip(deltas) {
-                if let Some(o) = out.get_mut(*id as usize) {
-                    *o += d;
-                }
-            }
+            self.table.accumulate_face(f, &face.ids, out);
         }
     }
 
@@ -265,12 +266,7 @@ impl<'t> Hemicube<'t> {
     pub fn form_factor(&self, id: u32) -> f64 {
         let mut sum = 0.0;
         for (f, face) in self.faces.iter().enumerate() {
-            let deltas = if f == 0 {
-                &self.table.top
-            } else {
-                &self.table.side
-            };
-            for (i, d) in face.ids.iter().zip(deltas) {
+            for (i, d) in face.ids.iter().zip(self.table.deltas(f)) {
                 if *i == id {
                     sum += d;
                 }

@@ -59,25 +59,6 @@ pub fn analytic(
 /// Below this share of receivers for the hemicube, a shot uses the contour method alone.
 pub const MIN_HEMICUBE_SHARE: f64 = 0.25;
 
-/// An upper bound on the share of elements [`analytic`] would give the hemicube, from
-/// per-patch bounds alone (a few operations per patch instead of per element): a receiving
-/// patch whose elements are all nearer than `k` radii, or all too small to cover
-/// `min_pixels` even at the patch's nearest distance and face-on, gives it none.
-pub fn hemicube_share_bound(ctx: &RowContext, shooter: PatchId, pixel_solid_angle: f64) -> f64 {
-    let mesh = ctx.mesh;
-    let possible: usize = mesh
-        .patches
-        .iter()
-        .enumerate()
-        .filter(|(k, r)| {
-            *k != shooter.0 as usize
-                && !all_analytic(ctx, mesh.patch(shooter), r, pixel_solid_angle)
-        })
-        .map(|(_, r)| (r.elements.end - r.elements.start) as usize)
-        .sum();
-    possible as f64 / mesh.elements.len().max(1) as f64
-}
-
 /// Whether [`analytic`] holds for every element of `receiver` (decided from its bounding
 /// sphere and largest element; `false` means "perhaps not").
 fn all_analytic(
@@ -117,9 +98,10 @@ fn element_analytic(
     )
 }
 
-/// The number of receiving elements [`analytic`] gives the hemicube: per-element tests only
-/// on the patches [`all_analytic`] cannot decide.
-fn hemicube_count(ctx: &RowContext, shooter: PatchId, emitter: bool, omega: f64) -> usize {
+/// The number of receiving elements [`analytic`] gives the hemicube, the shooter's own
+/// excluded: per-element tests only on the patches whose bounding sphere and largest element
+/// (a few operations per patch) do not already decide that all of theirs are analytic.
+pub fn hemicube_count(ctx: &RowContext, shooter: PatchId, emitter: bool, omega: f64) -> usize {
     let mesh = ctx.mesh;
     let patch = mesh.patch(shooter);
     mesh.patches

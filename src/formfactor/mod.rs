@@ -594,11 +594,11 @@ fn element_visibility(
 ) -> Visibility {
     let above = patch.polygon.iter().all(|v| (*v - x).dot(nx) >= 0.0);
     let clipped;
-    let (poly, part) = if above {
-        (&patch.polygon[..], None)
+    let poly = if above {
+        &patch.polygon[..]
     } else {
         clipped = polygon::clip_to_halfspace(&patch.polygon, x, nx);
-        (&clipped[..], Some(PolygonSampler::new(&clipped)))
+        &clipped[..]
     };
     let origin = x + nx * ctx.epsilon;
     let pyramid = Shaft::pyramid(origin, poly, ctx.epsilon);
@@ -622,6 +622,8 @@ fn element_visibility(
         debug_assert!(value.is_finite());
         return Visibility::Exact(value.max(0.0));
     }
+    // Only the sampled tier needs a sampler of the clipped polygon.
+    let part = (!above).then(|| PolygonSampler::new(poly));
     let target = part.as_ref().unwrap_or(sampler);
     Visibility::Fraction(sampled_visibility(
         |ray| ctx.bvh.any_hit_among(&cutting, ray, 1e-9, 1.0 - 1e-9),

@@ -643,13 +643,9 @@ impl ItemBufferRaster for GpuHemicube {
         let mut out = vec![0.0; n];
         let mut at = 0usize;
         for f in 0..5usize {
-            let deltas = table.deltas(f);
-            for (id, d) in buffer[at..at + deltas.len()].iter().zip(deltas) {
-                if let Some(o) = out.get_mut(*id as usize) {
-                    *o += d;
-                }
-            }
-            at += deltas.len();
+            let len = table.deltas(f).len();
+            table.accumulate_face(f, &buffer[at..at + len], &mut out);
+            at += len;
         }
         Ok(out)
     }
