@@ -184,7 +184,7 @@ pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicB
                 slice.fill(0.0);
                 return;
             }
-            let ignore = [receiver.face as u32, patch.face as u32];
+            let ignore = [receiver.occluder, patch.occluder];
             let all_visible =
                 setup.probe && patch_pair_unblocked(ctx, receiver, patch, shooter, k, ignore);
             let first = receiver.elements.start as usize;

@@ -30,6 +30,9 @@ pub struct SolverConfig {
     pub element_size: Option<f64>,
     /// Patch (shooter) edge length; `None` = [`mesh::default_patch_size`].
     pub patch_size: Option<f64>,
+    /// Element budget for the element size when `element_size` is `None`; `None` =
+    /// [`mesh::default_element_size`].
+    pub max_elements: Option<usize>,
     pub method: FormFactorMethod,
     pub formfactor: FormFactorParams,
     /// Memory for cached form-factor rows, in bytes.
@@ -44,6 +47,7 @@ impl Default for SolverConfig {
         Self {
             element_size: None,
             patch_size: None,
+            max_elements: None,
             method: FormFactorMethod::Contour,
             formfactor: FormFactorParams::default(),
             row_cache_bytes: 512 << 20,
@@ -129,13 +133,16 @@ impl ProgressiveSolver {
         }
         let size = config
             .element_size
-            .unwrap_or_else(|| mesh::default_element_size(&scene));
+            .unwrap_or_else(|| match config.max_elements {
+                Some(budget) => mesh::element_size_for_budget(&scene, budget),
+                None => mesh::default_element_size(&scene),
+            });
         let patch = config
             .patch_size
-            .unwrap_or_else(|| mesh::default_patch_size(&scene))
+            .unwrap_or_else(|| mesh::default_patch_size(size))
             .max(size);
         let mesh = Mesh::build_with(&scene, size, patch)?;
-        let bvh = Bvh::build(&Mesh::face_triangles(&scene));
+        let bvh = Bvh::build(&mesh.blocker_triangles(&scene));
         let epsilon = 1e-6 * mesh.bounds().diagonal().max(1e-12);
         let mut s = Self {
             scene,
@@ -201,10 +208,10 @@ impl ProgressiveSolver {
         let patch = self
             .config
             .patch_size
-            .unwrap_or_else(|| mesh::default_patch_size(&self.scene))
+            .unwrap_or_else(|| mesh::default_patch_size(element_size))
             .max(element_size);
         let mesh = Mesh::build_with(&self.scene, element_size, patch)?;
-        self.bvh = Bvh::build(&Mesh::face_triangles(&self.scene));
+        self.bvh = Bvh::build(&mesh.blocker_triangles(&self.scene));
         self.mesh = mesh;
         self.config.element_size = Some(element_size);
         self.rows.clear();
@@ -475,7 +482,7 @@ impl ProgressiveSolver {
     pub fn pick(&self, origin: DVec3, dir: DVec3) -> Option<PatchId> {
         let ray = Ray::new(origin, dir);
         let hit = self.bvh.closest_hit(&ray, 0.0, f64::INFINITY)?;
-        let face = hit.id as usize;
+        let group = hit.id;
         let back = !hit.front && self.scene.two_sided;
         let x = ray.at(hit.t);
         let candidates = || {
@@ -483,7 +490,7 @@ impl ProgressiveSolver {
                 .patches
                 .iter()
                 .enumerate()
-                .filter(move |(_, p)| p.face == face && p.back == back)
+                .filter(move |(_, p)| p.occluder == group && p.back == back)
         };
         // The patch whose centroid is nearest the hit point.
         candidates()
