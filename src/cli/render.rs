@@ -350,6 +350,11 @@ fn render(args: &RenderArgs) -> Result<()> {
         "faces": solver.scene().faces.len(),
         "element_size": solver.mesh().element_size,
         "patch_size": solver.mesh().patch_size,
+        "camera": [
+            settings.camera.eye.x, settings.camera.eye.y, settings.camera.eye.z,
+            settings.camera.target.x, settings.camera.target.y, settings.camera.target.z,
+            settings.camera.vfov_deg
+        ],
         "vertices": solver.mesh().vertices.len(),
         "shots": solver.shots(),
         "solve_seconds": solve_seconds,

@@ -54,13 +54,23 @@ pub const MAX_ELEMENTS: usize = 4_000_000;
 
 /// A default element size: the edge length that gives about `budget` elements, counting a
 /// face smaller than one element as one (a scene of more faces than the budget gets one
-/// element per small face). Bisection on the estimate `Σ max(1, A_f / s²)` per side.
+/// element per small face). Bisection on the estimate `Σ max(1, k A_f / s²)` per side
+/// (k = 1 for convex quads, 2 for triangles and other polygons).
 pub fn element_size_for_budget(scene: &Scene, budget: usize) -> f64 {
     let sides = if scene.two_sided { 2.0 } else { 1.0 };
+    // Elements per s² of area: a convex quad is cut into squares of about s², anything
+    // else into triangles of at most s²/2 ([`build`]).
     let areas: Vec<f64> = scene
         .faces
         .iter()
-        .map(|f| polygon::area(&f.vertices))
+        .map(|f| {
+            let per = if f.vertices.len() == 4 && polygon::is_convex(&f.vertices) {
+                1.0
+            } else {
+                2.0
+            };
+            per * polygon::area(&f.vertices)
+        })
         .collect();
     let total: f64 = areas.iter().sum();
     let diag = scene.bounds().diagonal();

@@ -38,7 +38,7 @@ pub fn choose_camera(scene: &Scene) -> Camera {
             break;
         }
         let score = score(&tracer, &camera);
-        if best.is_none_or(|(s, _)| score > s) {
+        if best.is_none_or(|(s, _)| score > s + TIE) {
             best = Some((score, camera));
         }
     }
@@ -66,12 +66,43 @@ fn score(tracer: &PathTracer, camera: &Camera) -> f64 {
     lit as f64 / (GRID_X * GRID_Y) as f64
 }
 
-/// Outside views first, then inside ones (`true`).
+/// A later candidate must beat the best so far by this fraction of rays (sampling noise):
+/// among equals the earlier, more natural view stays.
+const TIE: f64 = 0.03;
+
+/// The distance from `center` along `-dir` at which every corner of the box is inside a
+/// square image of `vfov_deg`, with a small margin.
+fn fit_distance(min: DVec3, max: DVec3, dir: DVec3, vfov_deg: f64) -> f64 {
+    let center = (min + max) * 0.5;
+    let probe = Camera {
+        eye: center - dir,
+        target: center,
+        vfov_deg,
+    };
+    let Some((f, r, u)) = probe.basis() else {
+        return (max - min).length();
+    };
+    let tan = (vfov_deg.to_radians() * 0.5).tan() / 1.05;
+    let mut dist: f64 = 0.0;
+    for i in 0..8 {
+        let c = DVec3::new(
+            if i & 1 == 0 { min.x } else { max.x },
+            if i & 2 == 0 { min.y } else { max.y },
+            if i & 4 == 0 { min.z } else { max.z },
+        );
+        let d = c - center;
+        let lateral = d.dot(r).abs().max(d.dot(u).abs());
+        dist = dist.max(lateral / tan - d.dot(f));
+    }
+    dist.max(1e-9)
+}
+
+/// Outside views first, then inside ones (`true`): from near the upper corners looking at
+/// the centre (the usual view of a room), then from the centre.
 fn candidates(min: DVec3, max: DVec3) -> Vec<(Camera, bool)> {
     let center = (min + max) * 0.5;
     let radius = ((max - min).length() * 0.5).max(1e-9);
     let outside_fov: f64 = 40.0;
-    let dist = radius / (outside_fov.to_radians() * 0.5).sin();
     // Directions *towards which* the camera looks. Straight up or down is tilted a little
     // (the camera's up is +y).
     let mut dirs = vec![
@@ -92,6 +123,7 @@ fn candidates(min: DVec3, max: DVec3) -> Vec<(Camera, bool)> {
     let mut out = Vec::new();
     for d in &dirs {
         let Some(d) = d.try_normalize() else { continue };
+        let dist = fit_distance(min, max, d, outside_fov);
         out.push((
             Camera {
                 eye: center - d * dist,
@@ -100,6 +132,23 @@ fn candidates(min: DVec3, max: DVec3) -> Vec<(Camera, bool)> {
             },
             false,
         ));
+    }
+    for sy in [1.0, -1.0] {
+        for (sx, sz) in [(-1.0, 1.0), (1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)] {
+            let corner = DVec3::new(
+                if sx < 0.0 { min.x } else { max.x },
+                if sy < 0.0 { min.y } else { max.y },
+                if sz < 0.0 { min.z } else { max.z },
+            );
+            out.push((
+                Camera {
+                    eye: center + (corner - center) * 0.85,
+                    target: center,
+                    vfov_deg: 70.0,
+                },
+                true,
+            ));
+        }
     }
     for d in [
         DVec3::NEG_Z,
