@@ -1,7 +1,7 @@
 //! The GPU hemicube (wgpu; lavapipe on machines without a GPU) against the CPU hemicube.
 //!
-//! Skipped when no adapter can be opened, unless `CI` is set: CI installs lavapipe, so there
-//! a missing adapter is a failure.
+//! Without an adapter these tests print why and skip, except in CI (`common::in_ci`), where
+//! `.ci/run` installs lavapipe and a missing adapter is a failure.
 
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -16,17 +16,26 @@ use nusselt::mesh::PatchId;
 use nusselt::scene::{LoadOptions, Scene};
 use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 
+mod common;
+
 fn gpu() -> Option<GpuHemicube> {
-    match GpuHemicube::new() {
-        Ok(g) => {
-            eprintln!("adapter: {}", g.adapter());
-            Some(g)
-        }
-        Err(e) if std::env::var_os("CI").is_none() => {
-            eprintln!("skipped: {e}");
-            None
-        }
-        Err(e) => panic!("CI has lavapipe, yet: {e}"),
+    common::gpu_hemicube()
+}
+
+/// The one rule for `CI` (tests/common): any value but empty, `false` or `0`.
+#[test]
+fn ci_is_any_value_but_empty_false_or_0() {
+    for (v, ci) in [
+        (None, false),
+        (Some(""), false),
+        (Some("false"), false),
+        (Some("FALSE"), false),
+        (Some("0"), false),
+        (Some("true"), true),
+        (Some("1"), true),
+        (Some("yes"), true),
+    ] {
+        assert_eq!(common::ci_value(v), ci, "CI={v:?}");
     }
 }
 
