@@ -5,6 +5,7 @@ Deterministic, Python 3 standard library only:
 
     python3 scripts/make_models.py            # rewrite both folders
     python3 scripts/make_models.py --check    # exit 1 if a committed file differs
+    python3 scripts/make_models.py --terrain 224 DIR/terrain.obj   # 100,352 triangles
 
 Every OBJ names its own MTL, and every MTL has a light (`Ke`). Coordinates are printed
 with 12 significant digits (`%.12g`), so a rerun gives byte-identical files. Units are
@@ -672,8 +673,81 @@ def hard():
     return out
 
 
+def terrain(n, path):
+    """The large model of tests/models.rs (write_terrain), for benchmarks: a closed
+    4 x 3 x 4 room whose floor is a smooth terrain of n x n cells (2 n^2 triangles, vertex
+    normals), walls through the terrain's border, a 3 x 3 ceiling grid with the centre cell
+    a light. n = 224 gives 100,352 triangles. Not committed: written where asked."""
+    sx, sy, sz = 4.0, 3.0, 4.0
+
+    def height(x, z):
+        u, v = x / sx, z / sz
+        edge = math.sin(math.pi * u) * math.sin(math.pi * v)
+        return 0.4 * edge * (1 + 0.5 * math.sin(7 * u) * math.cos(5 * v))
+
+    out = ["# Terrain room, %d triangles (scripts/make_models.py --terrain)." % (2 * n * n), "mtllib terrain.mtl"]
+    for i in range(n + 1):
+        for j in range(n + 1):
+            x, z = sx * i / n, sz * j / n
+            e = 1e-4
+            dx = (height(x + e, z) - height(x - e, z)) / (2 * e)
+            dz = (height(x, z + e) - height(x, z - e)) / (2 * e)
+            ln = math.sqrt(dx * dx + 1 + dz * dz)
+            out.append("v %s %s %s" % (fmt(x), fmt(height(x, z)), fmt(z)))
+            out.append("vn %s %s %s" % (fmt(-dx / ln), fmt(1 / ln), fmt(-dz / ln)))
+    out.append("usemtl ground")
+
+    def vid(i, j):
+        return i * (n + 1) + j + 1
+
+    for i in range(n):
+        for j in range(n):
+            a, b, c, d = vid(i, j), vid(i, j + 1), vid(i + 1, j + 1), vid(i + 1, j)
+            out.append("f %d//%d %d//%d %d//%d" % (a, a, b, b, c, c))
+            out.append("f %d//%d %d//%d %d//%d" % (a, a, c, c, d, d))
+    base = (n + 1) * (n + 1)
+    for p in [(0, 0, 0), (sx, 0, 0), (sx, sy, 0), (0, sy, 0), (0, 0, sz), (sx, 0, sz), (sx, sy, sz), (0, sy, sz)]:
+        out.append("v %s %s %s" % tuple(fmt(c) for c in p))
+
+    def corner(k):
+        return base + k + 1
+
+    def wall(bottom, top, reverse):
+        v = list(bottom) + list(top)
+        if reverse:
+            v.reverse()
+        return "f " + " ".join(str(k) for k in v)
+
+    out.append("usemtl wall")
+    out.append(wall([vid(i, 0) for i in range(n + 1)], [corner(2), corner(3)], False))
+    out.append(wall([vid(i, n) for i in range(n + 1)], [corner(6), corner(7)], True))
+    out.append(wall([vid(0, j) for j in range(n + 1)], [corner(7), corner(3)], True))
+    out.append(wall([vid(n, j) for j in range(n + 1)], [corner(6), corner(2)], False))
+    k = base + 9
+    grid = {}
+    ts = [0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0]
+    for i, u in enumerate(ts):
+        for j, w in enumerate(ts):
+            out.append("v %s %s %s" % (fmt(u * sx), fmt(sy), fmt(w * sz)))
+            grid[(i, j)] = k
+            k += 1
+    for i in range(3):
+        for j in range(3):
+            out.append("usemtl %s" % ("light" if (i, j) == (1, 1) else "wall"))
+            out.append("f %d %d %d %d" % (grid[(i, j)], grid[(i + 1, j)], grid[(i + 1, j + 1)], grid[(i, j + 1)]))
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    with open(path, "w", encoding="utf-8", newline="\n") as f:
+        f.write("\n".join(out) + "\n")
+    with open(os.path.join(os.path.dirname(path) or ".", "terrain.mtl"), "w", encoding="utf-8") as f:
+        f.write("newmtl ground\nKd 0.5 0.45 0.4\nnewmtl wall\nKd 0.7 0.7 0.7\nnewmtl light\nKd 0.7 0.7 0.7\nKe 10 10 10\n")
+
+
 def main():
-    check = "--check" in sys.argv[1:]
+    args = sys.argv[1:]
+    if args[:1] == ["--terrain"]:
+        terrain(int(args[1]), args[2])
+        return 0
+    check = "--check" in args
     bad = []
     for folder, objs in [(MODELS, models()), (HARD, hard())]:
         os.makedirs(folder, exist_ok=True)
