@@ -694,7 +694,7 @@ fn hard_cases_mesh_at_default_size_within_the_budget() {
         let scene = Scene::load_obj(p, &LoadOptions::default())
             .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
         let size = nusselt::mesh::default_element_size(&scene);
-        let patch = nusselt::mesh::default_patch_size(&scene);
+        let patch = nusselt::mesh::default_patch_size(size);
         let faces = scene.faces.len();
         match Mesh::build_with(&scene, size, patch.max(size)) {
             Ok(m) => report.push((p.clone(), faces, m.elements.len(), m.patches.len())),

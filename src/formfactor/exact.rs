@@ -36,10 +36,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::{
-    PolygonSampler, RowContext, ShotSetup, contour, patch_pair_unblocked, patch_slices,
-    visibility_fraction,
-};
+use super::contour;
+use super::row::{RowContext, ShotSetup, patch_slices};
+use super::visibility::{part_above, part_sampler, patch_pair_unblocked, visibility_fraction};
 use crate::geometry::sampling::hash_seed;
 use crate::geometry::{Rng, polygon};
 use crate::mesh::PatchId;
@@ -198,26 +197,13 @@ pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicB
                 }
                 let mut rng =
                     Rng::new(hash_seed(&[ctx.params.seed, shooter.0 as u64, j as u64]), 0);
-                let above = patch
-                    .polygon
-                    .iter()
-                    .all(|v| (*v - e.centroid).dot(e.normal) >= 0.0);
-                let clipped = if above {
-                    Vec::new()
-                } else {
-                    polygon::clip_to_halfspace(&patch.polygon, e.centroid, e.normal)
-                };
-                let part = PolygonSampler::new(&clipped);
-                let sampler = if part.is_empty() {
-                    &setup.sampler
-                } else {
-                    &part
-                };
+                let part = part_above(&patch.polygon, e.centroid, e.normal);
+                let sampler = part_sampler(&part, &setup.sampler);
                 let v = visibility_fraction(
                     ctx.bvh,
                     e.centroid,
                     e.normal,
-                    sampler,
+                    &sampler,
                     setup.m,
                     setup.probe,
                     ctx.epsilon,

@@ -23,8 +23,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::FormFactorParams;
 use super::hemicube::{self, DeltaTable};
-use super::{FormFactorParams, RowContext, ShotSetup, contour_patch, patch_slices};
+use super::row::{RowContext, ShotSetup, contour_patch, patch_slices};
 use crate::mesh::PatchId;
 
 /// Whether a receiver (centroid `c`, normal `n`, area `a`) is computed analytically for a

@@ -16,7 +16,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::{PolygonSampler, RowContext};
+use super::row::RowContext;
+use super::visibility::PolygonSampler;
 use crate::geometry::sampling::hash_seed;
 use crate::geometry::{Bvh, Ray, Rng};
 use crate::mesh::PatchId;
@@ -55,8 +56,9 @@ pub fn estimate(
     n: u64,
     rng: &mut Rng,
 ) -> f64 {
-    if n == 0 {
-        return 0.0;
+    let empty_receiver = matches!(receiver, Receiver::Polygon(s) if s.is_empty());
+    if n == 0 || target.is_empty() || empty_receiver {
+        return 0.0; // A degenerate polygon has no area to exchange light with.
     }
     let ny = target.normal();
     let mut sum = 0.0;

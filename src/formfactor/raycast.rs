@@ -17,7 +17,8 @@ use std::sync::{Arc, Mutex};
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::{PolygonSampler, RowContext};
+use super::row::RowContext;
+use super::visibility::PolygonSampler;
 use crate::geometry::sampling::{cosine_hemisphere, hash_seed, splitmix};
 use crate::geometry::{Bvh, Ray, Rng};
 use crate::mesh::{Mesh, PatchId};
@@ -32,8 +33,8 @@ pub fn hit_fraction(
     epsilon: f64,
     rng: &mut Rng,
 ) -> f64 {
-    if n == 0 {
-        return 0.0;
+    if n == 0 || matches!(&from, Origin::Polygon(s) if s.is_empty()) {
+        return 0.0; // A degenerate origin polygon sends nothing.
     }
     let mut hits = 0u64;
     for _ in 0..n {
@@ -104,6 +105,10 @@ pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicB
     let total = ctx.params.rays.max(1) as u64;
     const CHUNKS: u64 = 16;
     let sampler = PolygonSampler::new(&patch.polygon);
+    if sampler.is_empty() {
+        out.fill(0.0); // A degenerate shooter sends nothing.
+        return !cancel.load(Ordering::Relaxed);
+    }
     let n_el = mesh.elements.len();
     let counts: Option<Vec<u32>> = (0..CHUNKS)
         .into_par_iter()

@@ -1,0 +1,187 @@
+//! Rows of form factors: the solver's unit of work. For a shooting patch `i`, a row holds
+//! `F_ji` for every receiving element `j`. [`compute_row`] dispatches on the method; the
+//! contour row itself (`contour_patch`) is here, its visibility in [`super::visibility`]
+//! and its kernel in [`super::contour`].
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use rayon::prelude::*;
+
+use super::visibility::{
+    PolygonSampler, Visibility, element_visibility, occluded_point_to_polygon, side,
+};
+use super::{
+    FormFactorMethod, FormFactorParams, contour, exact, hemicube, hybrid, montecarlo, raycast,
+};
+use crate::geometry::sampling::hash_seed;
+use crate::geometry::shaft::Shaft;
+use crate::geometry::{Bvh, Rng};
+use crate::mesh::{Mesh, PatchId};
+use crate::scene::Scene;
+
+use glam::DVec3;
+
+/// What a row computation may look at.
+pub struct RowContext<'a> {
+    pub scene: &'a Scene,
+    pub mesh: &'a Mesh,
+    /// BVH over the patch triangles (ids = input face index).
+    pub bvh: &'a Bvh,
+    pub params: &'a FormFactorParams,
+    /// Offset of shadow-ray end points from their surfaces (scene units).
+    pub epsilon: f64,
+    /// The rasteriser of `gpu-hemicube` rows (without one they fall back to the CPU hemicube).
+    pub raster: Option<&'a dyn hemicube::ItemBufferRaster>,
+}
+
+/// Computes `out[j] = F_ji`, from element `j` to the shooting patch `i`.
+/// Returns `false` (leaving `out` partly written) when `cancel` was set during the work.
+pub fn compute_row(
+    method: FormFactorMethod,
+    ctx: &RowContext,
+    shooter: PatchId,
+    out: &mut [f32],
+    cancel: &AtomicBool,
+) -> bool {
+    match method {
+        FormFactorMethod::Contour => contour_row(ctx, shooter, out, cancel),
+        FormFactorMethod::Exact => exact::row(ctx, shooter, out, cancel),
+        FormFactorMethod::Hemicube => hemicube::row(ctx, shooter, out, cancel),
+        FormFactorMethod::Raycast => raycast::row(ctx, shooter, out, cancel),
+        FormFactorMethod::Montecarlo => montecarlo::row(ctx, shooter, out, cancel),
+        FormFactorMethod::Hybrid => hybrid::row(ctx, shooter, out, cancel),
+        FormFactorMethod::GpuHemicube => hemicube::raster_row(ctx, shooter, out, cancel),
+    }
+}
+
+/// Splits a row into one slice per receiving patch (a patch's elements are contiguous).
+pub(crate) fn patch_slices<'o>(mesh: &Mesh, out: &'o mut [f32]) -> Vec<(usize, &'o mut [f32])> {
+    let mut slices = Vec::with_capacity(mesh.patches.len());
+    let mut rest = out;
+    for (k, r) in mesh.patches.iter().enumerate() {
+        let (head, tail) = rest.split_at_mut((r.elements.end - r.elements.start) as usize);
+        slices.push((k, head));
+        rest = tail;
+    }
+    slices
+}
+
+/// What the analytic rows share for one shot.
+pub(crate) struct ShotSetup {
+    pub sampler: PolygonSampler,
+    pub m: u32,
+    pub probe: bool,
+}
+
+impl ShotSetup {
+    pub fn new(ctx: &RowContext, shooter: PatchId) -> Self {
+        let patch = ctx.mesh.patch(shooter);
+        // Light sources always get every ray: their shadows matter most.
+        let emitter = ctx.scene.materials[patch.material.0 as usize].is_emitter();
+        Self {
+            sampler: PolygonSampler::new(&patch.polygon),
+            m: side(ctx.params.visibility_rays),
+            probe: ctx.params.probe_visibility && !emitter,
+        }
+    }
+}
+
+/// The contour method for the elements of receiving patch `k` (`slice`).
+pub(crate) fn contour_patch(
+    ctx: &RowContext,
+    shooter: PatchId,
+    setup: &ShotSetup,
+    k: usize,
+    slice: &mut [f32],
+) {
+    let mesh = ctx.mesh;
+    let patch = mesh.patch(shooter);
+    let receiver = &mesh.patches[k];
+    let first = receiver.elements.start as usize;
+    // Behind the shooter, or the shooter behind it (coplanar patches included).
+    let behind = |poly: &[DVec3], of: &crate::mesh::Patch| {
+        poly.iter()
+            .all(|v| (*v - of.centroid).dot(of.normal) <= 0.0)
+    };
+    if k == shooter.0 as usize
+        || behind(&receiver.bounds, patch)
+        || behind(&patch.bounds, receiver)
+    {
+        slice.fill(0.0);
+        return;
+    }
+    // BVH ids are visibility groups; a planar surface (or a small cluster of facets)
+    // cannot block rays between its own points.
+    let ignore = [receiver.occluder, patch.occluder];
+    // Triangles in the pair's bounding box first; the hull only when there are some.
+    let mut candidates = Vec::new();
+    let bbox = Shaft::bounding_box(&receiver.bounds, &patch.bounds, ctx.epsilon);
+    let culled = ctx
+        .bvh
+        .collect_in_shaft(&bbox, ignore, MAX_SHAFT_CANDIDATES, &mut candidates);
+    if culled && !candidates.is_empty() {
+        let hull = Shaft::between(&receiver.bounds, &patch.bounds, ctx.epsilon);
+        candidates.retain(|&t| !hull.excludes_triangle(ctx.bvh.stored_triangle(t)));
+    }
+    for (i, f) in slice.iter_mut().enumerate() {
+        let j = first + i;
+        let e = &mesh.elements[j];
+        let mut rng = Rng::new(hash_seed(&[ctx.params.seed, shooter.0 as u64, j as u64]), 0);
+        if !culled {
+            // Too many candidate blockers to list: shadow rays through the whole BVH.
+            *f = occluded_point_to_polygon(
+                ctx.bvh,
+                e.centroid,
+                e.normal,
+                &patch.polygon,
+                &setup.sampler,
+                setup.m,
+                setup.probe,
+                ctx.epsilon,
+                ignore,
+                &mut rng,
+            ) as f32;
+            continue;
+        }
+        let analytic = contour::point_to_polygon_with_normal(
+            e.centroid,
+            e.normal,
+            &patch.polygon,
+            patch.normal,
+        );
+        if analytic <= 0.0 || candidates.is_empty() {
+            *f = analytic.max(0.0) as f32;
+            continue;
+        }
+        *f = match element_visibility(
+            ctx,
+            e.centroid,
+            e.normal,
+            patch,
+            &setup.sampler,
+            setup.m,
+            setup.probe,
+            &candidates,
+            &mut rng,
+        ) {
+            Visibility::Fraction(v) => (analytic * v) as f32,
+            Visibility::Exact(value) => value as f32,
+        };
+    }
+}
+
+fn contour_row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicBool) -> bool {
+    let setup = ShotSetup::new(ctx, shooter);
+    patch_slices(ctx.mesh, out)
+        .into_par_iter()
+        .for_each(|(k, slice)| {
+            if cancel.load(Ordering::Relaxed) {
+                return;
+            }
+            contour_patch(ctx, shooter, &setup, k, slice);
+        });
+    !cancel.load(Ordering::Relaxed)
+}
+
+/// More candidate blockers than this in a patch pair's shaft: use the BVH instead.
+const MAX_SHAFT_CANDIDATES: usize = 48;

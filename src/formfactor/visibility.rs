@@ -1,0 +1,487 @@
+//! Visibility between a receiving point and a shooting polygon: stratified shadow rays
+//! weighted by the point-to-point form factor, a 4-ray probe, the patch-pair shortcut, and
+//! the contour row's per-element choice between "no blocker", exact shadows and rays.
+
+use std::borrow::Cow;
+
+use glam::DVec3;
+
+use super::row::RowContext;
+use super::{contour, exact};
+use crate::geometry::sampling::{hash_seed, triangle_point};
+use crate::geometry::shaft::Shaft;
+use crate::geometry::{Bvh, Ray, Rng, polygon};
+use crate::mesh::PatchId;
+
+/// Stratified points on a polygon (area-uniform), for visibility rays.
+///
+/// A degenerate polygon (fewer than 3 vertices, collinear, or of zero area) gives an
+/// *empty* sampler ([`is_empty`](Self::is_empty)): it has no area to sample, every caller
+/// treats it as "nothing visible" (visibility 0, form factor 0), and [`point`](Self::point)
+/// returns the mean of the polygon's vertices (the origin when it has none) instead of
+/// indexing a triangle that does not exist.
+#[derive(Clone, Debug)]
+pub struct PolygonSampler {
+    /// Empty for a degenerate polygon.
+    triangles: Vec<[DVec3; 3]>,
+    cdf: Vec<f64>,
+    normal: DVec3,
+    /// What [`point`](Self::point) returns when there is nothing to sample.
+    fallback: DVec3,
+}
+
+impl PolygonSampler {
+    pub fn new(poly: &[DVec3]) -> Self {
+        let mut triangles: Vec<[DVec3; 3]> = polygon::triangulate(poly)
+            .into_iter()
+            .map(|t| [poly[t[0]], poly[t[1]], poly[t[2]]])
+            .collect();
+        let mut acc = 0.0;
+        let mut cdf: Vec<f64> = triangles
+            .iter()
+            .map(|t| {
+                acc += polygon::area(t);
+                acc
+            })
+            .collect();
+        if acc > 0.0 && acc.is_finite() {
+            cdf.iter_mut().for_each(|c| *c /= acc);
+        } else {
+            // Zero (or non-finite) area: nothing to sample.
+            triangles.clear();
+            cdf.clear();
+        }
+        let fallback = if poly.is_empty() {
+            DVec3::ZERO
+        } else {
+            poly.iter().copied().sum::<DVec3>() / poly.len() as f64
+        };
+        Self {
+            triangles,
+            cdf,
+            normal: polygon::normal(poly).unwrap_or(DVec3::Z),
+            fallback,
+        }
+    }
+
+    /// Maps a point of the unit square to the polygon, area-preserving. For an empty
+    /// sampler, the mean of the polygon's vertices.
+    pub fn point(&self, u1: f64, u2: f64) -> DVec3 {
+        if self.triangles.is_empty() {
+            return self.fallback;
+        }
+        let k = self
+            .cdf
+            .partition_point(|c| *c <= u1)
+            .min(self.triangles.len() - 1);
+        let lo = if k == 0 { 0.0 } else { self.cdf[k - 1] };
+        let hi = self.cdf.get(k).copied().unwrap_or(1.0);
+        let u = if hi > lo {
+            ((u1 - lo) / (hi - lo)).clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
+        let [a, b, c] = self.triangles[k];
+        triangle_point(a, b, c, u, u2)
+    }
+
+    pub fn normal(&self) -> DVec3 {
+        self.normal
+    }
+
+    /// True for a degenerate polygon: no area to sample, so nothing of it is visible.
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+}
+
+/// Visible fraction of the polygon from `x`, weighted by the point-to-point form factor:
+/// `Σ w_k v_k / Σ w_k` over `m × m` stratified points `y_k`, with `v_k` = 1 when the ray
+/// arrives and `w_k = cosθ_x cosθ_y / r²` (Wallace, Elmquist & Haines 1989 weight each
+/// sample by its delta form factor). Multiplied by Lambert's exact unoccluded value this is
+/// exact for a fully visible or fully hidden polygon and, unlike the plain area fraction,
+/// unbiased to first order when a blocker hides the part of the polygon that matters most
+/// (straight overhead). With `probe`, four rays go first and decide alone when they agree
+/// (all arrive or none do); a blocker smaller than the gaps between them can then be missed.
+#[allow(clippy::too_many_arguments)]
+pub fn visibility_fraction(
+    bvh: &Bvh,
+    x: DVec3,
+    nx: DVec3,
+    target: &PolygonSampler,
+    m: u32,
+    probe: bool,
+    epsilon: f64,
+    ignore: [u32; 2],
+    rng: &mut Rng,
+) -> f64 {
+    sampled_visibility(
+        |ray| bvh.any_hit_except(ray, 1e-9, 1.0 - 1e-9, ignore),
+        x + nx * epsilon,
+        nx,
+        target,
+        m,
+        probe,
+        epsilon,
+        rng,
+    )
+}
+
+/// [`visibility_fraction`] with the blocking test given: rays from `origin` (normal `nx`)
+/// to stratified points lifted `epsilon` off the target.
+#[allow(clippy::too_many_arguments)]
+fn sampled_visibility(
+    blocked: impl Fn(&Ray) -> bool,
+    origin: DVec3,
+    nx: DVec3,
+    target: &PolygonSampler,
+    m: u32,
+    probe: bool,
+    epsilon: f64,
+    rng: &mut Rng,
+) -> f64 {
+    if target.is_empty() {
+        return 0.0; // No area: nothing to see.
+    }
+    let ny = target.normal();
+    let ray_to = |u1: f64, u2: f64| {
+        let y = target.point(u1, u2) + ny * epsilon;
+        Ray::new(origin, y - origin)
+    };
+    if probe && m > 2 {
+        // A 2×2 stratified probe; if it agrees, take it (4 rays instead of m²).
+        let seen = probe_rays(&blocked, origin, target, epsilon, rng);
+        if seen == 0 || seen == 4 {
+            return seen as f64 / 4.0;
+        }
+    }
+    let (mut visible, mut total) = (0.0f64, 0.0f64);
+    for a in 0..m {
+        for b in 0..m {
+            let u1 = (a as f64 + rng.next_f64()) / m as f64;
+            let u2 = (b as f64 + rng.next_f64()) / m as f64;
+            let ray = ray_to(u1, u2);
+            let d = ray.dir;
+            let r2 = d.length_squared();
+            // cosθx cosθy / r² with an unnormalised direction.
+            let w = (nx.dot(d) * ny.dot(d)).abs() / (r2 * r2).max(f64::MIN_POSITIVE);
+            total += w;
+            if !blocked(&ray) {
+                visible += w;
+            }
+        }
+    }
+    if total > 0.0 { visible / total } else { 0.0 }
+}
+
+/// How many of 2×2 stratified rays from `origin` to the target (lifted `epsilon`) arrive.
+fn probe_rays(
+    blocked: impl Fn(&Ray) -> bool,
+    origin: DVec3,
+    target: &PolygonSampler,
+    epsilon: f64,
+    rng: &mut Rng,
+) -> u32 {
+    let mut seen = 0;
+    for k in 0..4u32 {
+        let u1 = ((k % 2) as f64 + rng.next_f64()) / 2.0;
+        let u2 = ((k / 2) as f64 + rng.next_f64()) / 2.0;
+        let y = target.point(u1, u2) + target.normal() * epsilon;
+        seen += u32::from(!blocked(&Ray::new(origin, y - origin)));
+    }
+    seen
+}
+
+pub(crate) fn side(rays: u32) -> u32 {
+    ((rays.max(1) as f64).sqrt().round() as u32).max(1)
+}
+
+/// Whether a whole receiving patch sees the whole shooting patch: both lie strictly in
+/// front of each other and 4 × 4 rays between points near the receiver's corners and
+/// stratified points on the shooter, plus centre to centre, all arrive. Then every element
+/// of the receiver skips its own shadow rays (a blocker that slips between these 17 rays is
+/// missed, as with the per-element probe).
+pub(crate) fn patch_pair_unblocked(
+    ctx: &RowContext,
+    receiver: &crate::mesh::Patch,
+    shooter: &crate::mesh::Patch,
+    shooter_id: PatchId,
+    receiver_index: usize,
+    ignore: [u32; 2],
+) -> bool {
+    let eps = ctx.epsilon;
+    let in_front = |points: &[DVec3], of: &crate::mesh::Patch| {
+        points
+            .iter()
+            .all(|p| (*p - of.centroid).dot(of.normal) > 10.0 * eps)
+    };
+    if !in_front(&shooter.bounds, receiver) || !in_front(&receiver.bounds, shooter) {
+        return false;
+    }
+    let mut rng = Rng::new(
+        hash_seed(&[
+            ctx.params.seed,
+            shooter_id.0 as u64,
+            receiver_index as u64,
+            0x5a4f7,
+        ]),
+        1,
+    );
+    let sampler = PolygonSampler::new(&shooter.polygon);
+    if sampler.is_empty() {
+        return false; // A degenerate shooter: let each element find it invisible.
+    }
+    let lift = |p: DVec3, n: DVec3| p + n * eps;
+    let blocked = |from: DVec3, to: DVec3| {
+        let (a, b) = (lift(from, receiver.normal), lift(to, shooter.normal));
+        ctx.bvh
+            .any_hit_except(&Ray::new(a, b - a), 1e-9, 1.0 - 1e-9, ignore)
+    };
+    if blocked(receiver.centroid, shooter.centroid) {
+        return false;
+    }
+    for corner in &receiver.polygon {
+        // A little inside the corner, off the neighbouring faces.
+        let from = *corner + (receiver.centroid - *corner) * 0.01;
+        for k in 0..4u32 {
+            let u1 = ((k % 2) as f64 + rng.next_f64()) / 2.0;
+            let u2 = ((k / 2) as f64 + rng.next_f64()) / 2.0;
+            if blocked(from, sampler.point(u1, u2)) {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// Lambert's point-to-polygon form factor times the visible fraction of stratified shadow
+/// rays to the part of the polygon above the receiver's tangent plane (`full` samples the
+/// whole polygon and is used when no clipping is needed).
+#[allow(clippy::too_many_arguments)]
+pub fn occluded_point_to_polygon(
+    bvh: &Bvh,
+    x: DVec3,
+    nx: DVec3,
+    poly: &[DVec3],
+    full: &PolygonSampler,
+    m: u32,
+    probe: bool,
+    epsilon: f64,
+    ignore: [u32; 2],
+    rng: &mut Rng,
+) -> f64 {
+    let analytic = contour::point_to_polygon(x, nx, poly);
+    if analytic <= 0.0 {
+        return 0.0;
+    }
+    let part = part_above(poly, x, nx);
+    let target = part_sampler(&part, full);
+    analytic * visibility_fraction(bvh, x, nx, &target, m, probe, epsilon, ignore, rng)
+}
+
+/// The part of `poly` on or above the tangent plane at `x` (unit normal `nx`), the only part
+/// a receiver there can see: `poly` itself when every vertex is on or above the plane,
+/// otherwise the clipped polygon (possibly degenerate).
+pub fn part_above(poly: &[DVec3], x: DVec3, nx: DVec3) -> Cow<'_, [DVec3]> {
+    if poly.iter().all(|v| (*v - x).dot(nx) >= 0.0) {
+        Cow::Borrowed(poly)
+    } else {
+        Cow::Owned(polygon::clip_to_halfspace(poly, x, nx))
+    }
+}
+
+/// A sampler of `part` (from [`part_above`]): `whole`, the sampler of the whole polygon,
+/// when nothing was clipped, otherwise a new sampler of the clipped part (empty when the
+/// clipped part is degenerate, which callers count as nothing visible).
+#[expect(
+    clippy::ptr_arg,
+    reason = "Borrowed vs Owned says whether anything was clipped"
+)]
+pub fn part_sampler<'a>(
+    part: &Cow<'_, [DVec3]>,
+    whole: &'a PolygonSampler,
+) -> Cow<'a, PolygonSampler> {
+    match part {
+        Cow::Borrowed(_) => Cow::Borrowed(whole),
+        Cow::Owned(clipped) => Cow::Owned(PolygonSampler::new(clipped)),
+    }
+}
+
+/// What [`element_visibility`] found.
+pub(crate) enum Visibility {
+    /// Multiply Lambert's unoccluded value by this.
+    Fraction(f64),
+    /// The form factor to the visible part itself.
+    Exact(f64),
+}
+
+/// The shooter as seen from a receiving point, given the only triangles that can block
+/// (`candidates`, from the receiving patch's shaft): if none of them cuts the point's own
+/// pyramid to the (clipped) shooter it is fully visible, without a ray; if a few do, their
+/// shadows are subtracted from the shooter polygon and Lambert's formula integrates what is
+/// left (exact, no noise); with many, stratified rays are tested against them alone.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn element_visibility(
+    ctx: &RowContext,
+    x: DVec3,
+    nx: DVec3,
+    patch: &crate::mesh::Patch,
+    sampler: &PolygonSampler,
+    m: u32,
+    probe: bool,
+    candidates: &[u32],
+    rng: &mut Rng,
+) -> Visibility {
+    let part = part_above(&patch.polygon, x, nx);
+    let origin = x + nx * ctx.epsilon;
+    let pyramid = Shaft::pyramid(origin, &part, ctx.epsilon);
+    let cutting: Vec<u32> = candidates
+        .iter()
+        .copied()
+        .filter(|&k| !pyramid.excludes_triangle(ctx.bvh.stored_triangle(k)))
+        .collect();
+    if cutting.is_empty() {
+        return Visibility::Fraction(1.0);
+    }
+    // Shooters that get every ray (lights, or all with probing off) get exact shadows
+    // instead; the others' penumbrae are sampled (clipping costs more than the 4-ray probe
+    // and the rays it saves: measured in docs/FORMFACTORS.md).
+    if !probe && cutting.len() <= ctx.params.exact_blockers {
+        let blockers: Vec<Vec<DVec3>> = cutting
+            .iter()
+            .map(|&k| ctx.bvh.stored_triangle(k).to_vec())
+            .collect();
+        let value = exact::point_to_visible_polygon(origin, nx, &patch.polygon, &blockers);
+        debug_assert!(value.is_finite());
+        return Visibility::Exact(value.max(0.0));
+    }
+    // Only the sampled tier needs a sampler of the clipped polygon.
+    let target = part_sampler(&part, sampler);
+    Visibility::Fraction(sampled_visibility(
+        |ray| ctx.bvh.any_hit_among(&cutting, ray, 1e-9, 1.0 - 1e-9),
+        origin,
+        nx,
+        &target,
+        m,
+        probe,
+        ctx.epsilon,
+        rng,
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::formfactor::{montecarlo, raycast};
+
+    /// Polygons with nothing to sample: no vertices, two, collinear, repeated points.
+    fn degenerate_polygons() -> Vec<Vec<DVec3>> {
+        let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::new(2.0, 0.0, 0.0));
+        vec![vec![], vec![a], vec![a, b], vec![a, b, c], vec![b, b, b, b]]
+    }
+
+    fn unit_square_at(z: f64) -> Vec<DVec3> {
+        // Facing down (−z), counter-clockwise seen from below.
+        vec![
+            DVec3::new(0.0, 0.0, z),
+            DVec3::new(0.0, 1.0, z),
+            DVec3::new(1.0, 1.0, z),
+            DVec3::new(1.0, 0.0, z),
+        ]
+    }
+
+    #[test]
+    fn degenerate_polygon_gives_an_empty_sampler_with_a_defined_point() {
+        for poly in degenerate_polygons() {
+            let s = PolygonSampler::new(&poly);
+            assert!(s.is_empty(), "{poly:?}");
+            // Used to panic: "index out of bounds: the len is 0 but the index is 0".
+            let mean = poly.iter().copied().sum::<DVec3>() / poly.len().max(1) as f64;
+            for (u1, u2) in [(0.0, 0.0), (0.5, 0.5), (1.0, 1.0), (f64::NAN, 0.3)] {
+                assert_eq!(s.point(u1, u2), mean, "{poly:?}");
+            }
+        }
+        assert!(!PolygonSampler::new(&unit_square_at(1.0)).is_empty());
+    }
+
+    #[test]
+    fn degenerate_target_is_invisible_to_every_estimator() {
+        let bvh = Bvh::default();
+        let (x, nx) = (DVec3::new(0.5, 0.5, 0.0), DVec3::Z);
+        for poly in degenerate_polygons() {
+            let s = PolygonSampler::new(&poly);
+            let mut rng = Rng::new(7, 0);
+            for probe in [false, true] {
+                let v =
+                    visibility_fraction(&bvh, x, nx, &s, 4, probe, 1e-9, [u32::MAX; 2], &mut rng);
+                assert_eq!(v, 0.0, "{poly:?}");
+            }
+            let f = occluded_point_to_polygon(
+                &bvh,
+                x,
+                nx,
+                &poly,
+                &s,
+                4,
+                false,
+                1e-9,
+                [u32::MAX; 2],
+                &mut rng,
+            );
+            assert_eq!(f, 0.0, "{poly:?}");
+            let receiver = montecarlo::Receiver::Point(x, nx);
+            let mc =
+                montecarlo::estimate(&receiver, &s, 1.0, None, [u32::MAX; 2], 1e-9, 64, &mut rng);
+            assert_eq!(mc, 0.0, "{poly:?}");
+            // As the origin of rays or point pairs too.
+            let square = PolygonSampler::new(&unit_square_at(1.0));
+            let from_nothing = montecarlo::Receiver::Polygon(&s);
+            let mc = montecarlo::estimate(
+                &from_nothing,
+                &square,
+                1.0,
+                None,
+                [u32::MAX; 2],
+                1e-9,
+                64,
+                &mut rng,
+            );
+            assert_eq!(mc, 0.0, "{poly:?}");
+            let hits =
+                raycast::hit_fraction(&bvh, raycast::Origin::Polygon(s), 0, 64, 1e-9, &mut rng);
+            assert_eq!(hits, 0.0, "{poly:?}");
+        }
+    }
+
+    #[test]
+    fn a_polygon_clipped_to_nothing_is_invisible() {
+        let square = unit_square_at(1.0);
+        let whole = PolygonSampler::new(&square);
+        let x = DVec3::new(0.5, 0.5, 1.0);
+        let nx = DVec3::X; // Tangent plane x = 0.5 cuts the square in half.
+        let half = part_above(&square, x, nx);
+        assert!(matches!(half, Cow::Owned(_)));
+        assert!((polygon::area(&half) - 0.5).abs() < 1e-12);
+        assert!(!part_sampler(&half, &whole).is_empty());
+        // A plane through one edge only: nothing of area is left above it.
+        let edge = part_above(&square, DVec3::new(1.0, 0.0, 1.0), DVec3::X);
+        assert!(part_sampler(&edge, &whole).is_empty());
+        let bvh = Bvh::default();
+        let v = visibility_fraction(
+            &bvh,
+            DVec3::new(1.0, 0.5, 0.0),
+            DVec3::X,
+            &part_sampler(&edge, &whole),
+            4,
+            false,
+            1e-9,
+            [u32::MAX; 2],
+            &mut Rng::new(3, 0),
+        );
+        assert_eq!(v, 0.0);
+        // Everything above: the whole polygon's own sampler, not a copy.
+        let all = part_above(&square, DVec3::new(0.5, 0.5, 0.0), DVec3::Z);
+        assert!(matches!(all, Cow::Borrowed(_)));
+        assert!(matches!(part_sampler(&all, &whole), Cow::Borrowed(_)));
+    }
+}
