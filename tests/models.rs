@@ -189,7 +189,7 @@ fn corpus_model(file: &str, closed: bool) {
     converge(&mut s, 1e-3);
     assert_sane(&s);
     assert_power(&s, closed);
-    let camera = s.scene().default_camera();
+    let camera = nusselt::render::view::default_camera(s.scene());
     let img = image_of(&s, camera, 64, 48, 1);
     check_image(file, &img);
     let lit = img.pixels.iter().filter(|p| p.max_element() > 0.0).count();
@@ -301,6 +301,7 @@ fn scale_series_renders_the_same_image() {
             .collect();
         let diag = (4f64 * 4.0 + 3.0 * 3.0 + 4.0 * 4.0).sqrt();
         let json = nusselt(&[
+            "render",
             obj.to_str().expect("path"),
             "--out",
             out.to_str().expect("path"),
@@ -563,7 +564,7 @@ proptest! {
         for b in s.element_radiance(true) {
             prop_assert!(b.is_finite() && b.min_element() >= 0.0, "radiance {}", b);
         }
-        let camera = s.scene().default_camera();
+        let camera = nusselt::render::view::default_camera(s.scene());
         let img = image_of(&s, camera, 16, 12, 1);
         for p in &img.pixels {
             prop_assert!(p.is_finite() && p.min_element() >= 0.0, "pixel {}", p);

@@ -126,6 +126,25 @@ fn channel_sum(c: Rgb) -> f64 {
     c.x.abs() + c.y.abs() + c.z.abs()
 }
 
+/// Scales a row so that a shot never delivers more power than it carries:
+/// `Σ_j F_ji A_j ≤ A_i`. Form factors evaluated at element centroids are not exactly
+/// reciprocal; where a small shooter lies close to a large receiving element's centroid
+/// (contact, slivers, duplicated faces) `F_ji A_j` can exceed `A_i`, and repeated shots
+/// between such a pair gain energy without bound. Exact rows already satisfy the bound
+/// (the row sum of a closed scene is 1), so this changes only rows that break it.
+fn conserve_energy(mesh: &Mesh, shooter: PatchId, row: &mut [f32]) {
+    let area = mesh.patch(shooter).area;
+    let delivered: f64 = row
+        .iter()
+        .zip(&mesh.elements)
+        .map(|(f, e)| *f as f64 * e.area)
+        .sum();
+    if area > 0.0 && delivered > area {
+        let k = (area / delivered) as f32;
+        row.iter_mut().for_each(|f| *f *= k);
+    }
+}
+
 impl ProgressiveSolver {
     pub fn new(scene: Scene, config: SolverConfig) -> Result<Self, SolverError> {
         if config.method == FormFactorMethod::GpuHemicube && config.raster.is_none() {
@@ -355,6 +374,7 @@ impl ProgressiveSolver {
         if !formfactor::compute_row(self.config.method, &ctx, shooter, &mut out, cancel) {
             return None;
         }
+        conserve_energy(&self.mesh, shooter, &mut out);
         let row: Arc<[f32]> = out.into();
         let bytes = row.len() * 4;
         if self.cached_bytes + bytes <= self.config.row_cache_bytes {
