@@ -402,7 +402,7 @@ pub(super) fn subdivide(poly: &[DVec3], size: f64, emit: &mut dyn FnMut(&[DVec3]
             bisect(a, b, c, target, 24, emit);
             continue;
         }
-        let n = ((area / target).sqrt().ceil() as usize).clamp(1, 100_000);
+        let n = steps((area / target).sqrt(), 1.0);
         let at = |i: usize, j: usize| {
             a + (b - a) * (i as f64 / n as f64) + (c - a) * (j as f64 / n as f64)
         };
@@ -420,7 +420,7 @@ pub(super) fn subdivide(poly: &[DVec3], size: f64, emit: &mut dyn FnMut(&[DVec3]
 /// Longest-edge bisection of a triangle (orientation kept) until each piece has at most
 /// `target` area.
 fn bisect(a: DVec3, b: DVec3, c: DVec3, target: f64, depth: u32, emit: &mut dyn FnMut(&[DVec3])) {
-    if depth == 0 || polygon::area(&[a, b, c]) <= target {
+    if depth == 0 || polygon::area(&[a, b, c]) <= target * (1.0 + 1e-9) {
         emit(&[a, b, c]);
         return;
     }
@@ -442,6 +442,8 @@ fn bisect(a: DVec3, b: DVec3, c: DVec3, target: f64, depth: u32, emit: &mut dyn 
     bisect(m, b, c, target, depth - 1, emit);
 }
 
+/// Segments of at most `size` along `length`. A ratio within 1e-9 of a whole number counts
+/// as that number, so the same scene written at another scale meshes the same.
 fn steps(length: f64, size: f64) -> usize {
-    ((length / size).ceil() as usize).clamp(1, 100_000)
+    ((length / size * (1.0 - 1e-9)).ceil() as usize).clamp(1, 100_000)
 }

@@ -43,7 +43,16 @@ pub(crate) struct Topology {
     pub planar_count: usize,
     /// Display group of each face.
     pub display: Vec<u32>,
+    /// Faces that repeat another face of the same material and plane: the same vertices
+    /// (a duplicate) or lying wholly inside it (a coplanar overlap). Meshing them would
+    /// count their area twice; they are left out of the mesh (not of the blockers).
+    /// Partial overlaps are not detected.
+    pub redundant: Vec<bool>,
 }
+
+/// Coplanar groups larger than this are not searched for faces lying inside others (the
+/// search is quadratic in the group).
+const MAX_OVERLAP_GROUP: usize = 64;
 
 struct UnionFind(Vec<u32>);
 
@@ -168,22 +177,52 @@ impl Topology {
         }
         // Coplanar faces of one material share display vertices even when they only meet
         // at T-junctions (no shared welded edge): grouped by a quantised plane.
-        let mut planes: HashMap<(u32, [i64; 4]), u32> = HashMap::new();
+        let mut planes: HashMap<(u32, [i64; 4]), Vec<u32>> = HashMap::new();
         for (fi, f) in faces.iter().enumerate() {
             if normal[fi] == DVec3::ZERO {
                 continue;
             }
             let nq = (normal[fi] * 1e4).round();
             let d = (normal[fi].dot(centroid[fi]) / (1e-5 * diag)).round();
-            let key = (
-                f.material.0,
-                [nq.x as i64, nq.y as i64, nq.z as i64, d as i64],
-            );
-            match planes.get(&key) {
-                Some(&g) => display_uf.union(g, fi as u32),
-                None => {
-                    planes.insert(key, fi as u32);
+            let key = (f.material.0, [nq.x as i64, nq.y as i64, nq.z as i64, d as i64]);
+            let members = planes.entry(key).or_default();
+            if let Some(&g) = members.first() {
+                display_uf.union(g, fi as u32);
+            }
+            members.push(fi as u32);
+        }
+        let mut redundant = vec![false; n];
+        let mut seen: HashMap<(u32, Vec<u32>), u32> = HashMap::new();
+        for (fi, w) in welded.iter().enumerate() {
+            // Same vertex set, material and orientation: a duplicate.
+            let mut key = w.clone();
+            key.sort_unstable();
+            let q = (normal[fi] * 1e4).round();
+            key.extend([q.x as i64 as u32, q.y as i64 as u32, q.z as i64 as u32]);
+            if seen.insert((faces[fi].material.0, key), fi as u32).is_some() {
+                redundant[fi] = true;
+            }
+        }
+        for members in planes.values() {
+            if members.len() < 2 || members.len() > MAX_OVERLAP_GROUP {
+                continue;
+            }
+            for &inner in members {
+                let fi = inner as usize;
+                if redundant[fi] {
+                    continue;
                 }
+                let inside_other = members.iter().any(|&outer| {
+                    let fo = outer as usize;
+                    fo != fi
+                        && !redundant[fo]
+                        && area[fo] > area[fi]
+                        && polygon::is_convex(&faces[fo].vertices)
+                        && faces[fi].vertices.iter().all(|p| {
+                            inside_convex(&faces[fo].vertices, normal[fo], *p, 1e-9 * diag)
+                        })
+                });
+                redundant[fi] = inside_other;
             }
         }
         let (planar, planar_count) = planar_uf.labels();
@@ -198,6 +237,7 @@ impl Topology {
             planar,
             planar_count,
             display,
+            redundant,
         }
     }
 
@@ -206,12 +246,15 @@ impl Topology {
             [self.adjacency_start[face] as usize..self.adjacency_start[face + 1] as usize]
     }
 
-    /// Faces of each planar surface.
+    /// Faces of each planar surface, redundant faces left out (empty surfaces dropped).
     pub fn planar_members(&self) -> Vec<Vec<u32>> {
         let mut out = vec![Vec::new(); self.planar_count];
         for (f, &s) in self.planar.iter().enumerate() {
-            out[s as usize].push(f as u32);
+            if !self.redundant[f] {
+                out[s as usize].push(f as u32);
+            }
         }
+        out.retain(|m| !m.is_empty());
         out
     }
 
@@ -328,6 +371,17 @@ impl Topology {
     }
 }
 
+/// Whether `p` lies in convex polygon `poly` (normal `n`), within `tolerance`.
+fn inside_convex(poly: &[DVec3], n: DVec3, p: DVec3, tolerance: f64) -> bool {
+    let k = poly.len();
+    (0..k).all(|i| {
+        let (a, b) = (poly[i], poly[(i + 1) % k]);
+        let inward = n.cross(b - a);
+        let len = inward.length();
+        len > 0.0 && (p - a).dot(inward) / len >= -tolerance
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -368,6 +422,17 @@ mod tests {
         let t = Topology::new(&s);
         assert_ne!(t.planar[0], t.planar[1]);
         assert_ne!(t.display[0], t.display[1]);
+    }
+
+    #[test]
+    fn duplicates_and_contained_coplanar_faces_are_redundant() {
+        // Face 0: unit floor; 1: the same quad again; 2: a small quad lying on it; 3: the
+        // same small quad facing down (another side: kept).
+        let s = scene(
+            "mtllib m.mtl\nusemtl w\nv 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nv 0.2 0 0.2\nv 0.4 0 0.2\nv 0.4 0 0.4\nv 0.2 0 0.4\nf 1 4 3 2\nf 1 4 3 2\nf 5 8 7 6\nf 5 6 7 8\nusemtl l\nv 0 2 0\nv 0 2 1\nv 1 2 1\nf 9 10 11\n",
+        );
+        let t = Topology::new(&s);
+        assert_eq!(t.redundant, vec![false, true, true, false, false]);
     }
 
     #[test]
