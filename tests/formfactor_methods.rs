@@ -20,7 +20,7 @@ use nusselt::scene::{LoadOptions, Scene};
 use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 
 mod common;
-use common::{catalogue, json_lines, load};
+use common::{catalogue, hemicube_bound, json_lines, load};
 
 fn is_disk(c: &Case) -> bool {
     c.a2.len() > 8
@@ -228,35 +228,6 @@ fn montecarlo_is_unbiased_and_within_four_standard_errors_away_from_contact() {
         checked += 1;
     }
     assert!(checked >= 5, "{checked}");
-}
-
-/// A bound on |hemicube − exact| for one hemicube at `p` (any normal, any rotation) seeing
-/// `polygons` (the receiver and the occluders), from the pixel size Δ = 2/res alone:
-///
-/// * a pixel that no projected edge crosses lies wholly inside or outside every polygon's
-///   image, so its centre classifies it right; it errs only by the midpoint rule of its delta
-///   form factor ρ: `Δ⁴/24 · (|ρ_xx| + |ρ_yy|) ≤ Δ⁴/24 · 8/π` per pixel, `4Δ²/π` over the 12
-///   face units of the hemicube;
-/// * the others lie along projected edges. An edge projects onto at most the 5 faces, as a
-///   straight piece on each, and a piece of face length L crosses at most `√2 L/Δ + 3`
-///   pixels. At face distance r from `p` (1 ≤ r ≤ √3) a change dθ of direction moves the
-///   image by at most r² dθ, and a pixel there has `ΔF ≤ Δ²/(π r⁴)` (top: Δ²/(π r⁴); sides:
-///   z Δ²/(π r⁴), z ≤ 1). So an edge subtending θ at `p` misclassifies at most
-///   `√2 Δ θ/π + 15 Δ²/π` of form factor, wherever it lies;
-/// * the near plane clips along the horizon, the bottom pixel rows of the sides: at most
-///   `4 res · (Δ/2) · Δ²/π = 4Δ²/π`.
-fn hemicube_bound(res: u32, p: DVec3, polygons: &[&[DVec3]]) -> f64 {
-    let res = res.div_ceil(2) * 2; // As DeltaTable rounds it.
-    let d = 2.0 / res as f64;
-    let (mut theta, mut edges) = (0.0, 0.0);
-    for poly in polygons {
-        for (k, a) in poly.iter().enumerate() {
-            let b = poly[(k + 1) % poly.len()];
-            theta += (*a - p).angle_between(b - p);
-            edges += 1.0;
-        }
-    }
-    SQRT_2 * d * theta / PI + (15.0 * edges + 8.0) * d * d / PI
 }
 
 fn vecs(p: &[[f64; 3]]) -> Vec<DVec3> {
