@@ -159,15 +159,32 @@ fn gpu_honours_occluders_like_the_cpu() {
     let on_gpu = gpu
         .form_factors(7, &polygons, &view, &table, &[0, NONE], 1)
         .expect("gpu")[0];
-    eprintln!("cpu {cpu:.9} gpu {on_gpu:.9}");
-    assert!(cpu > 0.1 && cpu < 0.5, "{cpu}");
+    // The exact values (Lambert on the seen part), and the hemicube's pixel bound for them.
+    let exact = nusselt::formfactor::exact::point_to_visible_polygon(
+        origin,
+        normal,
+        &square,
+        std::slice::from_ref(&blocker),
+    );
+    let unblocked = nusselt::formfactor::contour::point_to_polygon(origin, normal, &square);
+    let bound = common::hemicube_bound(256, origin, &[&square, &blocker]);
+    eprintln!(
+        "cpu {cpu:.9} gpu {on_gpu:.9} exact {exact:.9} (bound {bound:.1e}), unblocked {unblocked:.9}"
+    );
+    // The blocker hides more than the bound can blur, and the CPU hemicube sees that.
+    assert!(unblocked - exact > 2.0 * bound, "{unblocked} vs {exact}");
+    assert!((cpu - exact).abs() <= bound, "{cpu} vs exact {exact}");
     assert!((cpu - on_gpu).abs() <= 1e-3 * cpu, "{cpu} vs {on_gpu}");
     // Without the blocker the square is seen whole; the GPU keeps up with the change of key.
     let alone = || vec![square.clone()];
     let whole = gpu
         .form_factors(8, &alone, &view, &table, &[0], 1)
         .expect("gpu")[0];
-    assert!(whole > 1.5 * on_gpu, "{whole} vs {on_gpu}");
+    let bound = common::hemicube_bound(256, origin, &[&square]);
+    assert!(
+        (whole - unblocked).abs() <= bound,
+        "{whole} vs exact {unblocked}"
+    );
 }
 
 /// `gpu-hemicube` through the solver converges to what the CPU hemicube converges to, and

@@ -4,6 +4,7 @@
 
 use std::path::PathBuf;
 
+use glam::DVec3;
 use nusselt::formfactor::cases::{self, Case};
 
 /// A case file of tests/data.
@@ -63,4 +64,34 @@ pub fn gpu_hemicube() -> Option<nusselt::gpu::GpuHemicube> {
             None
         }
     }
+}
+
+/// A bound on |hemicube − exact| for one hemicube at `p` (any normal, any rotation) seeing
+/// `polygons` (the receiver and the occluders), from the pixel size Δ = 2/res alone:
+///
+/// * a pixel that no projected edge crosses lies wholly inside or outside every polygon's
+///   image, so its centre classifies it right; it errs only by the midpoint rule of its delta
+///   form factor ρ: `Δ⁴/24 · (|ρ_xx| + |ρ_yy|) ≤ Δ⁴/24 · 8/π` per pixel, `4Δ²/π` over the 12
+///   face units of the hemicube;
+/// * the others lie along projected edges. An edge projects onto at most the 5 faces, as a
+///   straight piece on each, and a piece of face length L crosses at most `√2 L/Δ + 3`
+///   pixels. At face distance r from `p` (1 ≤ r ≤ √3) a change dθ of direction moves the
+///   image by at most r² dθ, and a pixel there has `ΔF ≤ Δ²/(π r⁴)` (top: Δ²/(π r⁴); sides:
+///   z Δ²/(π r⁴), z ≤ 1). So an edge subtending θ at `p` misclassifies at most
+///   `√2 Δ θ/π + 15 Δ²/π` of form factor, wherever it lies;
+/// * the near plane clips along the horizon, the bottom pixel rows of the sides: at most
+///   `4 res · (Δ/2) · Δ²/π = 4Δ²/π`.
+pub fn hemicube_bound(res: u32, p: DVec3, polygons: &[&[DVec3]]) -> f64 {
+    use std::f64::consts::{PI, SQRT_2};
+    let res = res.div_ceil(2) * 2; // As DeltaTable rounds it.
+    let d = 2.0 / res as f64;
+    let (mut theta, mut edges) = (0.0, 0.0);
+    for poly in polygons {
+        for (k, a) in poly.iter().enumerate() {
+            let b = poly[(k + 1) % poly.len()];
+            theta += (*a - p).angle_between(b - p);
+            edges += 1.0;
+        }
+    }
+    SQRT_2 * d * theta / PI + (15.0 * edges + 8.0) * d * d / PI
 }
