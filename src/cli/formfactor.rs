@@ -7,8 +7,9 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 
+use super::cases;
 use super::render::{MethodArgs, parse_method};
-use crate::formfactor::{FormFactorParams, cases};
+use crate::formfactor::FormFactorParams;
 
 #[derive(Args, Debug)]
 pub struct FormfactorArgs {

@@ -3,6 +3,7 @@
 //! The subcommands and flags are a contract used by tests, benchmarks and outside checks:
 //! extend them, don't rename them.
 
+pub mod cases;
 mod formfactor;
 mod render;
 mod view;

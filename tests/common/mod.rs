@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use nusselt::formfactor::cases::{self, Case};
+use nusselt::cli::cases::{self, Case};
 
 /// A case file of tests/data.
 pub fn load(name: &str) -> Vec<Case> {
