@@ -16,11 +16,9 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use glam::DVec3;
-
 use crate::formfactor::hemicube::ItemBufferRaster;
 use crate::formfactor::{self, FormFactorMethod, FormFactorParams, RowContext};
-use crate::geometry::{Bvh, Ray};
+use crate::geometry::Bvh;
 use crate::mesh::{self, Mesh, MeshError, PatchId};
 use crate::scene::{MaterialId, Rgb, Scene};
 
@@ -305,15 +303,6 @@ impl ProgressiveSolver {
             .collect()
     }
 
-    /// Per display vertex radiance (see [`Mesh::vertex_values`]).
-    pub fn vertex_radiance(&self, with_ambient: bool) -> Vec<[f32; 3]> {
-        self.mesh
-            .vertex_values(&self.element_radiance(with_ambient))
-            .into_iter()
-            .map(|v| v.as_vec3().to_array())
-            .collect()
-    }
-
     /// The patch with the largest unshot power, if any power is left.
     pub fn next_shooter(&self) -> Option<PatchId> {
         let mut best: Option<(f64, usize)> = None;
@@ -469,35 +458,6 @@ impl ProgressiveSolver {
         }
         self.emitted_power = self.current_emitted_power().max(f64::MIN_POSITIVE);
         Ok(())
-    }
-
-    /// The patch hit by a ray, on the side the ray sees (for picking in a viewer).
-    pub fn pick(&self, origin: DVec3, dir: DVec3) -> Option<PatchId> {
-        let ray = Ray::new(origin, dir);
-        let hit = self.bvh.closest_hit(&ray, 0.0, f64::INFINITY)?;
-        let face = hit.id as usize;
-        let back = !hit.front && self.scene.two_sided;
-        let x = ray.at(hit.t);
-        let candidates = || {
-            self.mesh
-                .patches
-                .iter()
-                .enumerate()
-                .filter(move |(_, p)| p.face == face && p.back == back)
-        };
-        // The patch whose centroid is nearest the hit point.
-        candidates()
-            .min_by(|a, b| {
-                let da = (a.1.centroid - x).length_squared();
-                let db = (b.1.centroid - x).length_squared();
-                da.total_cmp(&db)
-            })
-            .map(|(i, _)| PatchId(i as u32))
-    }
-
-    /// Incident radiance per element, `H_j = Σ ΔB_i F_ji` over all shots.
-    pub fn incident(&self) -> &[Rgb] {
-        &self.incident
     }
 
     /// Emitted power Σ E·A and absorbed power Σ (1 − ρ)·H·A over elements. In a closed
