@@ -50,10 +50,7 @@ impl Image {
 
     /// Writes by extension: `.pfm`, `.exr` (linear) or `.png` (exposure + sRGB).
     pub fn save(&self, path: &Path, exposure: f64) -> Result<(), ImageError> {
-        let ext = path
-            .extension()
-            .map(|e| e.to_string_lossy().to_ascii_lowercase())
-            .unwrap_or_default();
+        let ext = check_extension(path)?;
         let err = |message: String| ImageError::Write {
             path: path.display().to_string(),
             message,
@@ -152,6 +149,23 @@ impl Image {
             }
         }
         Ok(img)
+    }
+}
+
+/// The file types [`Image::save`] writes, by extension (lower case).
+pub const IMAGE_EXTENSIONS: [&str; 3] = ["pfm", "exr", "png"];
+
+/// The extension of `path` (lower case) when [`Image::save`] can write it, else the error
+/// `save` would give: to check an output path before doing the work that fills it.
+pub fn check_extension(path: &Path) -> Result<String, ImageError> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    if IMAGE_EXTENSIONS.contains(&ext.as_str()) {
+        Ok(ext)
+    } else {
+        Err(ImageError::Extension(path.display().to_string()))
     }
 }
 

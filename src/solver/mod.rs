@@ -64,6 +64,34 @@ pub enum SolverError {
         range: &'static str,
         value: [f64; 3],
     },
+    #[error(
+        "the emitted power (Σ Ke × area = {emitted:e}) is too large: with interreflection it would overflow to infinity; lower Ke or scale the model down"
+    )]
+    PowerOverflow { emitted: f64 },
+}
+
+/// Refuses materials whose light would overflow `f64` during a solve: the emitted power
+/// `P = Σ |E| A` (channel sums), times `1/(1 − ρ_max)` for all its interreflections (the
+/// most power a solve carries), over the smallest patch area (the largest unshot radiance
+/// that power can become) must be finite; otherwise unshot fractions turn NaN and a solve
+/// to a target never ends.
+fn check_power(materials: &[crate::scene::Material], mesh: &Mesh) -> Result<(), SolverError> {
+    let mut emitted = 0.0;
+    let mut rho_max: f64 = 0.0;
+    let mut min_area = f64::INFINITY;
+    for p in &mesh.patches {
+        let m = &materials[p.material.0 as usize];
+        emitted += channel_sum(m.emission) * p.area;
+        rho_max = rho_max.max(m.reflectance.max_element());
+        if p.area > 0.0 {
+            min_area = min_area.min(p.area);
+        }
+    }
+    let carried = emitted / (1.0 - rho_max.min(crate::scene::MAX_REFLECTANCE));
+    if !(carried.is_finite() && (carried / min_area.min(1.0)).is_finite()) {
+        return Err(SolverError::PowerOverflow { emitted });
+    }
+    Ok(())
 }
 
 /// When to stop [`ProgressiveSolver::run`].
@@ -133,6 +161,7 @@ impl ProgressiveSolver {
             .unwrap_or_else(|| mesh::default_patch_size(&scene))
             .max(size);
         let mesh = Mesh::build_with(&scene, size, patch)?;
+        check_power(&scene.materials, &mesh)?;
         let bvh = Bvh::build(&Mesh::face_triangles(&scene));
         let epsilon = 1e-6 * mesh.bounds().diagonal().max(1e-12);
         let mut s = Self {
@@ -202,6 +231,7 @@ impl ProgressiveSolver {
             .unwrap_or_else(|| mesh::default_patch_size(&self.scene))
             .max(element_size);
         let mesh = Mesh::build_with(&self.scene, element_size, patch)?;
+        check_power(&self.scene.materials, &mesh)?;
         self.bvh = Bvh::build(&Mesh::face_triangles(&self.scene));
         self.mesh = mesh;
         self.config.element_size = Some(element_size);
@@ -389,7 +419,10 @@ impl ProgressiveSolver {
     ) {
         let start = Instant::now();
         loop {
-            if self.unshot_fraction() <= stop.unshot
+            // A NaN fraction stops too instead of shooting forever.
+            let fraction = self.unshot_fraction();
+            if fraction.is_nan()
+                || fraction <= stop.unshot
                 || stop.max_shots.is_some_and(|n| self.shots >= n)
                 || stop
                     .max_seconds
@@ -441,8 +474,11 @@ impl ProgressiveSolver {
                 value: emission.to_array(),
             });
         }
-        self.scene.materials[idx].reflectance = reflectance;
-        self.scene.materials[idx].emission = emission;
+        let mut candidate = self.scene.materials.clone();
+        candidate[idx].reflectance = reflectance;
+        candidate[idx].emission = emission;
+        check_power(&candidate, &self.mesh)?;
+        self.scene.materials = candidate;
         let mut gained = vec![Rgb::ZERO; self.mesh.patches.len()];
         for (j, e) in self.mesh.elements.iter().enumerate() {
             let p = &self.mesh.patches[e.patch.0 as usize];
@@ -471,5 +507,28 @@ impl ProgressiveSolver {
             absorbed += (Rgb::ONE - m.reflectance) * *h * e.area;
         }
         (emitted, absorbed)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::LoadOptions;
+
+    #[test]
+    fn a_nan_unshot_fraction_stops_the_run_instead_of_shooting_forever() {
+        let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+        let mut s = ProgressiveSolver::new(scene, SolverConfig::default()).expect("solver");
+        // What an overflow used to leave: inf/inf somewhere in the unshot power.
+        s.unshot[0] = Rgb::splat(f64::NAN);
+        assert!(s.unshot_fraction().is_nan());
+        let stop = StopCriteria {
+            unshot: 1e-4,
+            max_shots: None,
+            // Only so that a regression fails in bounded time; the run must not get here.
+            max_seconds: Some(20.0),
+        };
+        s.run(&stop, &AtomicBool::new(false), &mut |_| {});
+        assert_eq!(s.shots(), 0, "shot on with a NaN unshot fraction");
     }
 }
