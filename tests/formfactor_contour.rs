@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use nusselt::formfactor::cases::{self, Case};
+use nusselt::cli::cases::{self, Case};
 use nusselt::formfactor::{FormFactorMethod, FormFactorParams};
 
 mod common;

@@ -7,10 +7,11 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
 use glam::DVec3;
+use nusselt::cli::cases;
 use nusselt::formfactor::hemicube::{
     self, DeltaTable, Hemicube, HemicubeView, ItemBufferRaster, NONE,
 };
-use nusselt::formfactor::{FormFactorMethod, FormFactorParams, cases};
+use nusselt::formfactor::{FormFactorMethod, FormFactorParams};
 use nusselt::gpu::GpuHemicube;
 use nusselt::mesh::PatchId;
 use nusselt::scene::{LoadOptions, Scene};

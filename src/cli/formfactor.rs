@@ -4,11 +4,12 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Args;
 
+use super::cases;
 use super::render::{MethodArgs, parse_method};
-use crate::formfactor::{FormFactorParams, cases};
+use crate::formfactor::FormFactorParams;
 
 #[derive(Args, Debug)]
 pub struct FormfactorArgs {
@@ -34,9 +35,8 @@ pub struct FormfactorArgs {
 
 pub fn run(args: &FormfactorArgs) -> Result<()> {
     let method = parse_method("--method", &args.method)?;
-    if args.rays == 0 || args.vis_rays == 0 {
-        bail!("--rays and --vis-rays must be at least 1");
-    }
+    super::check_count("--rays", args.rays, super::MAX_RAYS)?;
+    super::check_count("--vis-rays", args.vis_rays, super::MAX_VIS_RAYS)?;
     args.method_args.check()?;
     let list = cases::load(&args.cases)?;
     let params = FormFactorParams {

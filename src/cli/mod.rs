@@ -3,6 +3,7 @@
 //! The subcommands and flags are a contract used by tests, benchmarks and outside checks:
 //! extend them, don't rename them.
 
+pub mod cases;
 mod formfactor;
 mod render;
 mod view;
@@ -95,14 +96,53 @@ impl SceneArgs {
     }
 }
 
+/// Largest `--width`/`--height`: 8192² pixels of linear RGB are already 1.6 GB.
+pub const MAX_IMAGE_SIDE: u32 = 8192;
+/// Largest `--spp`.
+pub const MAX_SPP: u32 = 1 << 20;
+/// Largest `--rays` (rays per raycast shot or samples per case).
+pub const MAX_RAYS: u32 = 1 << 26;
+/// Largest `--vis-rays` (shadow rays per receiver–shooter pair).
+pub const MAX_VIS_RAYS: u32 = 1 << 20;
+
+/// Checks that an output file can be created where asked before any work is done: its
+/// folder exists (the file itself is written later, atomically or when its data is ready).
+pub fn check_output(flag: &str, path: &std::path::Path) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => std::path::Path::new("."),
+    };
+    if !dir.is_dir() {
+        bail!(
+            "{flag} {}: the folder {} does not exist",
+            path.display(),
+            dir.display()
+        );
+    }
+    if path.is_dir() {
+        bail!("{flag} {}: is a folder, not a file", path.display());
+    }
+    Ok(())
+}
+
+/// Checks a count flag: `1..=max`.
+pub fn check_count(flag: &str, value: u32, max: u32) -> Result<()> {
+    if !(1..=max).contains(&value) {
+        bail!("{flag} must be in 1..={max}, got {value}");
+    }
+    Ok(())
+}
+
 /// Image size and camera.
 #[derive(Args, Debug, Clone)]
 pub struct ViewArgs {
+    /// Image width in pixels (at most 8192).
     #[arg(long, default_value_t = 256)]
     pub width: u32,
+    /// Image height in pixels (at most 8192).
     #[arg(long, default_value_t = 256)]
     pub height: u32,
-    /// Samples per pixel (stratified, box filter).
+    /// Samples per pixel (stratified, box filter; at most 1048576).
     #[arg(long, default_value_t = 16)]
     pub spp: u32,
     /// Camera as ex,ey,ez,tx,ty,tz,vfov_deg (+y up); default: the scene's own or a framing view.
@@ -112,12 +152,9 @@ pub struct ViewArgs {
 
 impl ViewArgs {
     pub fn settings(&self, scene: &Scene, seed: u64) -> Result<crate::render::RenderSettings> {
-        if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
-            bail!("--width and --height must be in 1..=16384");
-        }
-        if self.spp == 0 {
-            bail!("--spp must be at least 1");
-        }
+        check_count("--width", self.width, MAX_IMAGE_SIDE)?;
+        check_count("--height", self.height, MAX_IMAGE_SIDE)?;
+        check_count("--spp", self.spp, MAX_SPP)?;
         let camera = match &self.camera {
             Some(text) => crate::scene::Camera::parse(text).context("--camera")?,
             None => crate::render::view::default_camera(&scene),

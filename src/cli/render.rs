@@ -10,7 +10,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::{SceneArgs, ViewArgs};
+use super::{MAX_RAYS, MAX_VIS_RAYS, SceneArgs, ViewArgs, check_count, check_output};
 use crate::formfactor::hemicube::ItemBufferRaster;
 use crate::formfactor::{FormFactorMethod, FormFactorParams};
 use crate::render::{self, Image, SolutionView};
@@ -57,7 +57,7 @@ pub struct RenderArgs {
     /// element).
     #[arg(long, default_value_t = 16)]
     pub vis_rays: u32,
-    /// Rays per shot for --formfactor raycast.
+    /// Rays per shot for --formfactor raycast (at most 2^26).
     #[arg(long, default_value_t = 1 << 16)]
     pub rays: u32,
     #[command(flatten)]
@@ -186,6 +186,13 @@ fn create(path: &PathBuf) -> Result<std::io::BufWriter<std::fs::File>> {
     Ok(std::io::BufWriter::new(f))
 }
 
+/// The output checks shared by `render` and `reference`, made before any work: an image
+/// extension `Image::save` writes, in a folder that exists.
+fn check_image_out(out: &std::path::Path) -> Result<()> {
+    render::image::check_extension(out).context("--out")?;
+    check_output("--out", out)
+}
+
 /// `nusselt render`. A panic anywhere in loading, meshing, solving or rendering (a bug:
 /// nothing should panic) becomes an error naming the scene instead of an abort.
 pub fn run_render(args: &RenderArgs) -> Result<()> {
@@ -202,28 +209,36 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
 
 fn render(args: &RenderArgs) -> Result<()> {
     let process_start = Instant::now();
-    let scene = args.scene.load()?;
-    let settings = args.view.settings(&scene, args.seed)?;
+    // Every flag first: a typo must not cost a scene load or a solve.
+    check_image_out(&args.out)?;
+    for (flag, path) in [("--log", &args.log), ("--elements-csv", &args.elements_csv)] {
+        if let Some(p) = path {
+            check_output(flag, p)?;
+        }
+    }
     if !(args.unshot.is_finite() && args.unshot >= 0.0) {
         bail!("--unshot must be a number >= 0");
     }
     if args.seconds.is_some_and(|s| !(s.is_finite() && s >= 0.0)) {
         bail!("--seconds must be a number >= 0");
     }
-    if args.vis_rays == 0 {
-        bail!("--vis-rays must be at least 1");
+    if let Some(p) = args.patch_size
+        && !(p.is_finite() && p > 0.0)
+    {
+        bail!("--patch-size must be a positive number, got {p}");
     }
+    check_count("--vis-rays", args.vis_rays, MAX_VIS_RAYS)?;
     if !(args.exposure.is_finite() && args.exposure > 0.0) {
         bail!("--exposure must be a positive number");
     }
     let method = parse_method("--formfactor", &args.formfactor)?;
-    if args.rays == 0 {
-        bail!("--rays must be at least 1");
-    }
+    check_count("--rays", args.rays, MAX_RAYS)?;
     if args.max_elements == Some(0) {
         bail!("--max-elements must be at least 1");
     }
     args.method_args.check()?;
+    let scene = args.scene.load()?;
+    let settings = args.view.settings(&scene, args.seed)?;
     // Read the reference first so a bad path fails before the work.
     let reference = match &args.reference {
         Some(p) => Some(Image::load_pfm(p)?),
@@ -385,6 +400,10 @@ fn render(args: &RenderArgs) -> Result<()> {
 }
 
 pub fn run_reference(args: &ReferenceArgs) -> Result<()> {
+    check_image_out(&args.out)?;
+    if !(args.exposure.is_finite() && args.exposure > 0.0) {
+        bail!("--exposure must be a positive number");
+    }
     let scene = args.scene.load()?;
     let settings = args.view.settings(&scene, args.seed)?;
     let start = Instant::now();

@@ -37,7 +37,7 @@ pub struct ViewCmdArgs {
     /// Screenshot once converged (the default).
     #[arg(long, requires = "screenshot")]
     pub after_converged: bool,
-    /// Give up on the screenshot after this many seconds (exit status 1).
+    /// Give up on the screenshot after this many seconds (exit status 1; at most 86400).
     #[arg(long, default_value_t = 600.0)]
     pub screenshot_timeout: f64,
     /// With --screenshot, also save the viewport alone as PNG (the viewport export).
@@ -67,7 +67,8 @@ pub struct ViewCmdArgs {
     /// Present frames without waiting for vertical sync.
     #[arg(long)]
     pub no_vsync: bool,
-    /// Threads computing form factors; default one per core.
+    /// Threads computing form factors; default one fewer than the cores
+    /// (`available_parallelism − 1`, at least 1), leaving one for the window.
     #[arg(long)]
     pub solver_threads: Option<usize>,
     /// Material edit, as in the edit panel: TARGET:kd=r,g,b[:ke=r,g,b], TARGET a material
@@ -98,6 +99,9 @@ impl ViewCmdArgs {
     }
 }
 
+/// Longest `--screenshot-timeout` and `--after-seconds`: a day.
+const MAX_WAIT_SECONDS: f64 = 86_400.0;
+
 fn parse_window(text: &str) -> Result<[f32; 2]> {
     let (w, h) = text
         .split_once(['x', 'X'])
@@ -120,7 +124,6 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
     if scene_args.scene.is_none() && scene_args.builtin.is_none() {
         scene_args.builtin = Some("cornell".into());
     }
-    let scene = scene_args.load()?;
     if let Some(s) = args.element_size
         && !(s.is_finite() && s > 0.0)
     {
@@ -139,27 +142,44 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
     let when = match (args.after_shots, args.after_seconds) {
         (Some(n), _) => ScreenshotWhen::Shots(n),
         (None, Some(s)) => {
-            if !(s.is_finite() && s >= 0.0) {
-                bail!("--after-seconds must be a number >= 0, got {s}");
+            if !(s.is_finite() && (0.0..=MAX_WAIT_SECONDS).contains(&s)) {
+                bail!("--after-seconds must be in 0..={MAX_WAIT_SECONDS}, got {s}");
             }
             ScreenshotWhen::Seconds(s)
         }
         (None, None) => ScreenshotWhen::Converged,
     };
-    if !(args.screenshot_timeout.is_finite() && args.screenshot_timeout > 0.0) {
-        bail!("--screenshot-timeout must be a positive number of seconds");
-    }
+    let t = args.screenshot_timeout;
+    // Bounded: Duration::from_secs_f64 panics on values past u64 seconds (1e20).
+    let timeout = Duration::try_from_secs_f64(t)
+        .ok()
+        .filter(|_| t > 0.0 && t <= MAX_WAIT_SECONDS)
+        .with_context(|| {
+            format!("--screenshot-timeout must be a number of seconds in (0, {MAX_WAIT_SECONDS}], got {t}")
+        })?;
     if args.solver_threads == Some(0) {
         bail!("--solver-threads must be at least 1");
     }
     if !args.exposure.is_finite() {
         bail!("--exposure must be a finite number of stops");
     }
+    for (flag, path) in [
+        ("--screenshot", &args.screenshot),
+        ("--viewport-png", &args.viewport_png),
+        ("--export-ply", &args.export_ply),
+        ("--frame-log", &args.frame_log),
+    ] {
+        if let Some(p) = path {
+            super::check_output(flag, p)?;
+        }
+    }
+    // The flags are checked: now the work.
+    let scene = scene_args.load()?;
     let automation = Automation {
         screenshot: args.screenshot.clone().map(|path| ScreenshotPlan {
             path,
             when,
-            timeout: Duration::from_secs_f64(args.screenshot_timeout),
+            timeout,
         }),
         frame_log: args.frame_log.clone(),
         edits,

@@ -28,7 +28,7 @@
 //! With occluders, [`point_to_visible_polygon`] gives the exact point-to-polygon value: the
 //! occluders (convex pieces) are projected from the point onto the source's plane and
 //! subtracted, and Lambert's formula is applied to what is left. Integrated over the
-//! receiver adaptively ([`super::cases::integrate_over`]) it is the reference for occluded
+//! receiver adaptively (`nusselt::cli::cases::integrate_over`, the case harness) it is the reference for occluded
 //! cases; its error is then the cubature's on a function with kinks at penumbra boundaries.
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -165,9 +165,12 @@ pub fn clipped_polygon_to_polygon(recv: &[DVec3], src: &[DVec3], rel: f64) -> f6
     ra / area * polygon_to_polygon_tol(&r, &s, rel)
 }
 
-/// `out[j] = F_ji`: the exact element-to-patch form factor (unoccluded) × the visible
-/// fraction of stratified rays from the element's centroid, as the contour row does (the
-/// same probes; the same visibility error).
+/// `out[j] = F_ji`: the exact element-to-patch form factor (unoccluded) × the weighted
+/// visible fraction of stratified shadow rays from the element's centroid
+/// ([`visibility_fraction`], through the whole BVH; with the 4-ray probe and the patch-pair
+/// shortcut for non-emitting shooters). Unlike the contour row it neither culls blockers by
+/// the pair's shaft nor subtracts light sources' shadows exactly, so its visibility error
+/// is that of sampled rays everywhere, lights included.
 pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicBool) -> bool {
     let setup = ShotSetup::new(ctx, shooter);
     let mesh = ctx.mesh;

@@ -1,9 +1,10 @@
 //! Which method computes form factors, and the tunables they share.
 
 /// Which method computes form factors. Parsed from its [`name`](Self::name) by
-/// [`FromStr`](std::str::FromStr) and by clap (`ValueEnum`), so every command line shares
-/// one parser and one list.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum)]
+/// [`FromStr`](std::str::FromStr) alone (every command-line flag naming a method goes
+/// through it; the viewer's menu lists [`ALL`](Self::ALL)), so there is one parser and one
+/// list. The core does not depend on clap.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum FormFactorMethod {
     /// Exact point-to-polygon contour formula × stratified visibility.
     Contour,
@@ -46,10 +47,6 @@ impl FormFactorMethod {
         }
     }
 
-    pub fn parse(s: &str) -> Option<FormFactorMethod> {
-        Self::ALL.iter().copied().find(|m| m.name() == s)
-    }
-
     /// The names, comma-separated (for messages).
     pub fn names() -> String {
         Self::ALL
@@ -74,7 +71,11 @@ pub struct UnknownMethod(pub String);
 impl std::str::FromStr for FormFactorMethod {
     type Err = UnknownMethod;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::parse(s).ok_or_else(|| UnknownMethod(s.to_string()))
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| UnknownMethod(s.to_string()))
     }
 }
 

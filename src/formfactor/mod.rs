@@ -15,7 +15,6 @@
 //! has stratified noise O(N^-3/4) in penumbrae; the centroid rule integrates over the
 //! receiving element with O(h²) error.
 
-pub mod cases;
 pub mod contour;
 pub mod exact;
 pub mod hemicube;

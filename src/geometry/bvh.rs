@@ -37,7 +37,7 @@ pub struct Hit {
     pub t: f64,
     /// Id given to the triangle at build time.
     pub id: u32,
-    /// Index of the triangle in build order.
+    /// Index of the stored triangle (for [`Bvh::stored_triangle`]).
     pub triangle: u32,
     /// Barycentric coordinates of the hit (weights of v1 and v2).
     pub u: f64,
@@ -59,8 +59,6 @@ pub struct TriangleInput {
 pub struct Bvh {
     nodes: Vec<Node>,
     tris: Vec<Tri>,
-    /// `order[k]` = input index of stored triangle `k`.
-    order: Vec<u32>,
 }
 
 impl Bvh {
@@ -94,20 +92,11 @@ impl Bvh {
                 }
             })
             .collect();
-        Bvh {
-            nodes,
-            tris,
-            order: idx,
-        }
+        Bvh { nodes, tris }
     }
 
     pub fn triangle_count(&self) -> usize {
         self.tris.len()
-    }
-
-    /// Input index of the stored triangle `k` returned in [`Hit::triangle`].
-    pub fn input_index(&self, stored: u32) -> u32 {
-        self.order[stored as usize]
     }
 
     /// Closest hit with `t` in `(t_min, t_max)`.

@@ -2,12 +2,18 @@
 //!
 //! Row 0 is the top of the image in memory. PFM stores rows bottom-to-top (as the format
 //! says); EXR stores linear values top-to-bottom; PNG is `exposure × radiance`, clamped,
-//! then encoded with the sRGB transfer curve.
+//! then encoded with the sRGB transfer curve. Every file is written atomically
+//! ([`atomic_write`]): a crash or a full disk never leaves a half-written image behind.
+//!
+//! The 8-bit helpers ([`srgb8`], [`Rgba8Image`] with [`crop`](Rgba8Image::crop) and
+//! [`save_png`](Rgba8Image::save_png), [`atomic_write`]) are shared with the viewer's
+//! screenshots and exports.
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::DVec3;
+use image::{ExtendedColorType, ImageEncoder as _};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
@@ -44,10 +50,7 @@ impl Image {
 
     /// Writes by extension: `.pfm`, `.exr` (linear) or `.png` (exposure + sRGB).
     pub fn save(&self, path: &Path, exposure: f64) -> Result<(), ImageError> {
-        let ext = path
-            .extension()
-            .map(|e| e.to_string_lossy().to_ascii_lowercase())
-            .unwrap_or_default();
+        let ext = check_extension(path)?;
         let err = |message: String| ImageError::Write {
             path: path.display().to_string(),
             message,
@@ -62,23 +65,28 @@ impl Image {
                         }
                     }
                 }
-                write_atomic(path, &bytes).map_err(|e| err(e.to_string()))
+                atomic_write(path, &bytes).map_err(|e| err(e.to_string()))
             }
             "exr" => {
                 let w = self.width as usize;
-                exr::prelude::write_rgb_file(path, w, self.height as usize, |x, y| {
-                    let p = self.pixels[y * w + x];
-                    (p.x as f32, p.y as f32, p.z as f32)
+                atomic_write_with(path, |tmp| {
+                    exr::prelude::write_rgb_file(tmp, w, self.height as usize, |x, y| {
+                        let p = self.pixels[y * w + x];
+                        (p.x as f32, p.y as f32, p.z as f32)
+                    })
+                    .map_err(std::io::Error::other)
                 })
                 .map_err(|e| err(e.to_string()))
             }
             "png" => {
-                let mut buf = image::RgbImage::new(self.width, self.height);
-                for (i, p) in buf.pixels_mut().enumerate() {
-                    let v = self.pixels[i] * exposure;
-                    *p = image::Rgb([srgb8(v.x), srgb8(v.y), srgb8(v.z)]);
+                let mut rgb = Vec::with_capacity(self.pixels.len() * 3);
+                for p in &self.pixels {
+                    let v = *p * exposure;
+                    rgb.extend([srgb8(v.x), srgb8(v.y), srgb8(v.z)]);
                 }
-                buf.save(path).map_err(|e| err(e.to_string()))
+                let bytes = encode_png(&rgb, self.width, self.height, ExtendedColorType::Rgb8)
+                    .map_err(err)?;
+                atomic_write(path, &bytes).map_err(|e| err(e.to_string()))
             }
             _ => Err(ImageError::Extension(path.display().to_string())),
         }
@@ -144,17 +152,159 @@ impl Image {
     }
 }
 
-fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let tmp = path.with_extension("tmp~");
-    {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
+/// The file types [`Image::save`] writes, by extension (lower case).
+pub const IMAGE_EXTENSIONS: [&str; 3] = ["pfm", "exr", "png"];
+
+/// The extension of `path` (lower case) when [`Image::save`] can write it, else the error
+/// `save` would give: to check an output path before doing the work that fills it.
+pub fn check_extension(path: &Path) -> Result<String, ImageError> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    if IMAGE_EXTENSIONS.contains(&ext.as_str()) {
+        Ok(ext)
+    } else {
+        Err(ImageError::Extension(path.display().to_string()))
     }
-    std::fs::rename(&tmp, path)
 }
 
-/// Linear value to 8-bit sRGB.
+/// Writes `bytes` to `path` atomically: into a temporary file in the same folder, synced,
+/// then renamed over `path`. On failure the temporary file is removed and `path` is left
+/// as it was.
+pub fn atomic_write(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    atomic_write_with(path, |tmp| {
+        let mut f = std::fs::File::create(tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()
+    })
+}
+
+/// [`atomic_write`] for writers that want a path: `write` fills the temporary file.
+fn atomic_write_with(
+    path: &Path,
+    write: impl FnOnce(&Path) -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "out".into());
+    // Hidden, per process, and ending in the target's extension (encoders may look at it).
+    let tmp = dir.join(format!(".{}.tmp.{name}", std::process::id()));
+    let result = write(&tmp).and_then(|()| std::fs::rename(&tmp, path));
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+fn encode_png(
+    pixels: &[u8],
+    width: u32,
+    height: u32,
+    color: ExtendedColorType,
+) -> Result<Vec<u8>, String> {
+    let mut bytes = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut bytes)
+        .write_image(pixels, width, height, color)
+        .map_err(|e| e.to_string())?;
+    Ok(bytes)
+}
+
+/// A rectangle of pixels: `x`, `y` of its top-left corner (row 0 at the top) and its size.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelRect {
+    pub x: u32,
+    pub y: u32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl PixelRect {
+    /// The pixels of a rectangle given in logical points (`min`, `max` corners, as a UI
+    /// lays out) on a screen of `pixels_per_point`: corners truncated to whole pixels (as
+    /// egui's `ColorImage::region` does); negative or non-finite coordinates become 0.
+    pub fn from_points(min: [f32; 2], max: [f32; 2], pixels_per_point: f32) -> PixelRect {
+        let px = |v: f32| {
+            let p = v * pixels_per_point;
+            if p.is_finite() && p > 0.0 {
+                p as u32
+            } else {
+                0
+            }
+        };
+        let (x0, y0, x1, y1) = (px(min[0]), px(min[1]), px(max[0]), px(max[1]));
+        PixelRect {
+            x: x0,
+            y: y0,
+            width: x1.saturating_sub(x0),
+            height: y1.saturating_sub(y0),
+        }
+    }
+}
+
+/// An 8-bit RGBA image, row-major, row 0 at the top (what a window screenshot gives).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Rgba8Image {
+    pub width: u32,
+    pub height: u32,
+    /// `4 × width × height` bytes.
+    pub pixels: Vec<u8>,
+}
+
+impl Rgba8Image {
+    /// The part of the image inside `rect`, clipped to the image (an empty image when they
+    /// do not overlap): never panics on a rectangle that reaches past the edge.
+    pub fn crop(&self, rect: PixelRect) -> Rgba8Image {
+        let x0 = rect.x.min(self.width);
+        let y0 = rect.y.min(self.height);
+        let x1 = rect.x.saturating_add(rect.width).min(self.width);
+        let y1 = rect.y.saturating_add(rect.height).min(self.height);
+        let (w, h) = (x1 - x0, y1 - y0);
+        let stride = self.width as usize * 4;
+        let mut pixels = Vec::with_capacity(w as usize * h as usize * 4);
+        for y in y0..y1 {
+            let row = y as usize * stride;
+            pixels.extend_from_slice(&self.pixels[row + x0 as usize * 4..row + x1 as usize * 4]);
+        }
+        Rgba8Image {
+            width: w,
+            height: h,
+            pixels,
+        }
+    }
+
+    /// Encodes the image as PNG and writes it atomically.
+    pub fn save_png(&self, path: &Path) -> Result<(), ImageError> {
+        let err = |message: String| ImageError::Write {
+            path: path.display().to_string(),
+            message,
+        };
+        if self.pixels.len() != self.width as usize * self.height as usize * 4 {
+            return Err(err(format!(
+                "{} bytes for a {}×{} RGBA image",
+                self.pixels.len(),
+                self.width,
+                self.height
+            )));
+        }
+        let bytes = encode_png(
+            &self.pixels,
+            self.width,
+            self.height,
+            ExtendedColorType::Rgba8,
+        )
+        .map_err(err)?;
+        atomic_write(path, &bytes).map_err(|e| err(e.to_string()))
+    }
+}
+
+/// Linear value (exposure applied) to 8-bit sRGB: clamped to [0, 1], the sRGB transfer
+/// curve, rounded. NaN gives 0.
 pub fn srgb8(linear: f64) -> u8 {
     let c = linear.clamp(0.0, 1.0);
     let s = if c <= 0.003_130_8 {
@@ -226,5 +376,123 @@ mod tests {
         assert_eq!(srgb8(0.0), 0);
         assert_eq!(srgb8(1.0), 255);
         assert_eq!(srgb8(0.5), 188);
+        // IEC 61966-2-1: linear 0.18 (18 % grey) encodes to 0.4614 → 118; the linear
+        // segment below 0.0031308: 0.001 → 12.92 × 0.001 × 255 = 3.29 → 3.
+        assert_eq!(srgb8(0.18), 118);
+        assert_eq!(srgb8(0.001), 3);
+        assert_eq!(srgb8(-1.0), 0);
+        assert_eq!(srgb8(7.0), 255);
+        assert_eq!(srgb8(f64::NAN), 0);
+    }
+
+    #[test]
+    fn atomic_write_replaces_and_leaves_no_temp() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let p = dir.path().join("a.png");
+        std::fs::write(&p, b"old").expect("write");
+        atomic_write(&p, b"new").expect("atomic");
+        assert_eq!(std::fs::read(&p).expect("read"), b"new");
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .expect("dir")
+            .map(|e| e.expect("entry").file_name())
+            .collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("a.png")]);
+        // A folder that does not exist: an error, and nothing left behind.
+        assert!(atomic_write(&dir.path().join("no/such/x.png"), b"x").is_err());
+        // A failed encoder leaves the old file and no temporary.
+        let failed = atomic_write_with(&p, |tmp| {
+            std::fs::write(tmp, b"half")?;
+            Err(std::io::Error::other("encoder failed"))
+        });
+        assert!(failed.is_err());
+        assert_eq!(std::fs::read(&p).expect("read"), b"new");
+        assert_eq!(std::fs::read_dir(dir.path()).expect("dir").count(), 1);
+    }
+
+    #[test]
+    fn crop_takes_the_rectangle_and_clips_at_the_edges() {
+        // 3 × 2 image whose pixel (x, y) holds [x, y, 7, 255].
+        let (w, h) = (3u32, 2u32);
+        let pixels = (0..h)
+            .flat_map(|y| (0..w).flat_map(move |x| [x as u8, y as u8, 7, 255]))
+            .collect();
+        let img = Rgba8Image {
+            width: w,
+            height: h,
+            pixels,
+        };
+        let rect = PixelRect {
+            x: 1,
+            y: 1,
+            width: 2,
+            height: 1,
+        };
+        let c = img.crop(rect);
+        assert_eq!((c.width, c.height), (2, 1));
+        assert_eq!(c.pixels, vec![1, 1, 7, 255, 2, 1, 7, 255]);
+        // Reaching past the right and bottom edges: clipped, no panic.
+        let past = img.crop(PixelRect {
+            x: 2,
+            y: 0,
+            width: 10,
+            height: 10,
+        });
+        assert_eq!((past.width, past.height), (1, 2));
+        assert_eq!(past.pixels, vec![2, 0, 7, 255, 2, 1, 7, 255]);
+        // Outside altogether: empty.
+        let none = img.crop(PixelRect {
+            x: 5,
+            y: 5,
+            width: 1,
+            height: 1,
+        });
+        assert_eq!((none.width, none.height, none.pixels.len()), (0, 0, 0));
+        // Logical points on a 2× screen: truncated corners, like egui's region.
+        let r = PixelRect::from_points([0.5, 0.0], [1.4, 1.0], 2.0);
+        assert_eq!(
+            r,
+            PixelRect {
+                x: 1,
+                y: 0,
+                width: 1,
+                height: 2
+            }
+        );
+        assert_eq!(
+            PixelRect::from_points([-3.0, f32::NAN], [1.0, 1.0], 1.0).x,
+            0
+        );
+    }
+
+    #[test]
+    fn png_round_trips_through_the_decoder() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let p = dir.path().join("c.png");
+        let img = Rgba8Image {
+            width: 2,
+            height: 1,
+            pixels: vec![255, 0, 0, 255, 0, 0, 255, 128],
+        };
+        img.save_png(&p).expect("save");
+        let back = image::open(&p).expect("decode").to_rgba8();
+        assert_eq!((back.width(), back.height()), (2, 1));
+        assert_eq!(back.into_raw(), img.pixels);
+        let bad = Rgba8Image {
+            width: 2,
+            height: 2,
+            pixels: vec![0; 4],
+        };
+        assert!(bad.save_png(&p).is_err());
+        // The linear image's PNG: exposure, then the sRGB curve.
+        let mut lin = Image::new(1, 1);
+        lin.pixels[0] = DVec3::new(0.09, 0.5, 2.0);
+        let q = dir.path().join("l.png");
+        lin.save(&q, 2.0).expect("save");
+        let px = image::open(&q).expect("decode").to_rgb8().into_raw();
+        assert_eq!(px, vec![srgb8(0.18), 255, 255]);
+        // EXR goes through a temporary too and reads back.
+        let e = dir.path().join("l.exr");
+        lin.save(&e, 1.0).expect("exr");
+        assert_eq!(std::fs::read_dir(dir.path()).expect("dir").count(), 3);
     }
 }

@@ -220,10 +220,6 @@ impl Scene {
         })
     }
 
-    pub fn face_area(&self, face: usize) -> f64 {
-        polygon::area(&self.faces[face].vertices)
-    }
-
     /// Total emitted power Σ E·A (per channel, radiance units × area).
     pub fn emitted_power(&self) -> Rgb {
         self.faces

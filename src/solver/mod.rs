@@ -16,11 +16,9 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use glam::DVec3;
-
 use crate::formfactor::hemicube::ItemBufferRaster;
 use crate::formfactor::{self, FormFactorMethod, FormFactorParams, RowContext};
-use crate::geometry::{Bvh, Ray};
+use crate::geometry::Bvh;
 use crate::mesh::{self, Mesh, MeshError, PatchId};
 use crate::scene::{MaterialId, Rgb, Scene};
 
@@ -70,6 +68,34 @@ pub enum SolverError {
         range: &'static str,
         value: [f64; 3],
     },
+    #[error(
+        "the emitted power (Σ Ke × area = {emitted:e}) is too large: with interreflection it would overflow to infinity; lower Ke or scale the model down"
+    )]
+    PowerOverflow { emitted: f64 },
+}
+
+/// Refuses materials whose light would overflow `f64` during a solve: the emitted power
+/// `P = Σ |E| A` (channel sums), times `1/(1 − ρ_max)` for all its interreflections (the
+/// most power a solve carries), over the smallest patch area (the largest unshot radiance
+/// that power can become) must be finite; otherwise unshot fractions turn NaN and a solve
+/// to a target never ends.
+fn check_power(materials: &[crate::scene::Material], mesh: &Mesh) -> Result<(), SolverError> {
+    let mut emitted = 0.0;
+    let mut rho_max: f64 = 0.0;
+    let mut min_area = f64::INFINITY;
+    for p in &mesh.patches {
+        let m = &materials[p.material.0 as usize];
+        emitted += channel_sum(m.emission) * p.area;
+        rho_max = rho_max.max(m.reflectance.max_element());
+        if p.area > 0.0 {
+            min_area = min_area.min(p.area);
+        }
+    }
+    let carried = emitted / (1.0 - rho_max.min(crate::scene::MAX_REFLECTANCE));
+    if !(carried.is_finite() && (carried / min_area.min(1.0)).is_finite()) {
+        return Err(SolverError::PowerOverflow { emitted });
+    }
+    Ok(())
 }
 
 /// When to stop [`ProgressiveSolver::run`].
@@ -166,6 +192,7 @@ impl ProgressiveSolver {
             .unwrap_or_else(|| mesh::default_patch_size(size))
             .max(size);
         let mesh = Mesh::build_with(&scene, size, patch)?;
+        check_power(&scene.materials, &mesh)?;
         let bvh = Bvh::build(&mesh.blocker_triangles(&scene));
         let epsilon = 1e-6 * mesh.bounds().diagonal().max(1e-12);
         let mut s = Self {
@@ -235,6 +262,7 @@ impl ProgressiveSolver {
             .unwrap_or_else(|| mesh::default_patch_size(element_size))
             .max(element_size);
         let mesh = Mesh::build_with(&self.scene, element_size, patch)?;
+        check_power(&self.scene.materials, &mesh)?;
         self.bvh = Bvh::build(&mesh.blocker_triangles(&self.scene));
         self.mesh = mesh;
         self.config.element_size = Some(element_size);
@@ -336,15 +364,6 @@ impl ProgressiveSolver {
             .collect()
     }
 
-    /// Per display vertex radiance (see [`Mesh::vertex_values`]).
-    pub fn vertex_radiance(&self, with_ambient: bool) -> Vec<[f32; 3]> {
-        self.mesh
-            .vertex_values(&self.element_radiance(with_ambient))
-            .into_iter()
-            .map(|v| v.as_vec3().to_array())
-            .collect()
-    }
-
     /// The patch with the largest unshot power, if any power is left.
     pub fn next_shooter(&self) -> Option<PatchId> {
         let mut best: Option<(f64, usize)> = None;
@@ -432,7 +451,10 @@ impl ProgressiveSolver {
     ) {
         let start = Instant::now();
         loop {
-            if self.unshot_fraction() <= stop.unshot
+            // A NaN fraction stops too instead of shooting forever.
+            let fraction = self.unshot_fraction();
+            if fraction.is_nan()
+                || fraction <= stop.unshot
                 || stop.max_shots.is_some_and(|n| self.shots >= n)
                 || stop
                     .max_seconds
@@ -484,8 +506,11 @@ impl ProgressiveSolver {
                 value: emission.to_array(),
             });
         }
-        self.scene.materials[idx].reflectance = reflectance;
-        self.scene.materials[idx].emission = emission;
+        let mut candidate = self.scene.materials.clone();
+        candidate[idx].reflectance = reflectance;
+        candidate[idx].emission = emission;
+        check_power(&candidate, &self.mesh)?;
+        self.scene.materials = candidate;
         let mut gained = vec![Rgb::ZERO; self.mesh.patches.len()];
         for (j, e) in self.mesh.elements.iter().enumerate() {
             let p = &self.mesh.patches[e.patch.0 as usize];
@@ -501,30 +526,6 @@ impl ProgressiveSolver {
         }
         self.emitted_power = self.current_emitted_power().max(f64::MIN_POSITIVE);
         Ok(())
-    }
-
-    /// The patch hit by a ray, on the side the ray sees (for picking in a viewer).
-    pub fn pick(&self, origin: DVec3, dir: DVec3) -> Option<PatchId> {
-        let ray = Ray::new(origin, dir);
-        let hit = self.bvh.closest_hit(&ray, 0.0, f64::INFINITY)?;
-        let group = hit.id;
-        let back = !hit.front && self.scene.two_sided;
-        let x = ray.at(hit.t);
-        let candidates = || {
-            self.mesh
-                .patches
-                .iter()
-                .enumerate()
-                .filter(move |(_, p)| p.occluder == group && p.back == back)
-        };
-        // The patch whose centroid is nearest the hit point.
-        candidates()
-            .min_by(|a, b| {
-                let da = (a.1.centroid - x).length_squared();
-                let db = (b.1.centroid - x).length_squared();
-                da.total_cmp(&db)
-            })
-            .map(|(i, _)| PatchId(i as u32))
     }
 
     /// Incident radiance per element, `H_j = Σ ΔB_i F_ji` over all shots.
@@ -543,5 +544,28 @@ impl ProgressiveSolver {
             absorbed += (Rgb::ONE - m.reflectance) * *h * e.area;
         }
         (emitted, absorbed)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::LoadOptions;
+
+    #[test]
+    fn a_nan_unshot_fraction_stops_the_run_instead_of_shooting_forever() {
+        let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+        let mut s = ProgressiveSolver::new(scene, SolverConfig::default()).expect("solver");
+        // What an overflow used to leave: inf/inf somewhere in the unshot power.
+        s.unshot[0] = Rgb::splat(f64::NAN);
+        assert!(s.unshot_fraction().is_nan());
+        let stop = StopCriteria {
+            unshot: 1e-4,
+            max_shots: None,
+            // Only so that a regression fails in bounded time; the run must not get here.
+            max_seconds: Some(20.0),
+        };
+        s.run(&stop, &AtomicBool::new(false), &mut |_| {});
+        assert_eq!(s.shots(), 0, "shot on with a NaN unshot fraction");
     }
 }

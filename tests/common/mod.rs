@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use glam::DVec3;
-use nusselt::formfactor::cases::{self, Case};
+use nusselt::cli::cases::{self, Case};
 
 /// A case file of tests/data.
 pub fn load(name: &str) -> Vec<Case> {

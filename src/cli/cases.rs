@@ -1,5 +1,6 @@
-//! Form-factor test cases in the JSON format of the reference catalogue: polygons `A1`,
-//! `A2` (counter-clockwise seen from the front, fronts facing each other), or a differential
+//! The form-factor case harness, at the CLI edge (used by `nusselt formfactor` and the
+//! tests): cases in the JSON format of the reference catalogue: polygons `A1`, `A2`
+//! (counter-clockwise seen from the front, fronts facing each other), or a differential
 //! receiver `point` + `point_normal`, and optional `occluders` (a list of polygons).
 
 use std::path::Path;
@@ -7,8 +8,8 @@ use std::path::Path;
 use glam::DVec3;
 use serde::Deserialize;
 
-use super::hemicube::{ItemBufferRaster, RasterError};
-use super::{
+use crate::formfactor::hemicube::{ItemBufferRaster, RasterError};
+use crate::formfactor::{
     FormFactorMethod, FormFactorParams, PolygonSampler, contour, exact, hemicube, hybrid,
     montecarlo, occluded_point_to_polygon, raycast,
 };

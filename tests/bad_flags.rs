@@ -1,0 +1,333 @@
+//! Command-line flags and scene values that used to get through: each is refused with a
+//! message naming the flag or the value, before any work, and nothing panics or hangs.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+use nusselt::scene::{LoadOptions, MaterialId, Rgb, Scene};
+use nusselt::solver::{ProgressiveSolver, SolverConfig, SolverError, StopCriteria};
+
+/// Runs the binary; returns (success, stderr). Killed (and the test failed) after `limit`,
+/// so a check that regresses into an endless solve fails instead of hanging CI.
+fn nusselt_within(args: &[&str], limit: Duration) -> (bool, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_nusselt"))
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run nusselt");
+    let start = Instant::now();
+    loop {
+        if child.try_wait().expect("wait").is_some() {
+            break;
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("nusselt {args:?} still running after {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let out = child.wait_with_output().expect("output");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Asserts that `args` fail with `expected` in the message, without a panic, within `limit`.
+fn refused_within(args: &[&str], expected: &str, limit: Duration) {
+    let (ok, stderr) = nusselt_within(args, limit);
+    assert!(!ok, "{args:?} should fail");
+    assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+    assert!(
+        stderr.contains(expected),
+        "{args:?}: stderr {stderr:?} lacks {expected:?}"
+    );
+}
+
+fn refused(args: &[&str], expected: &str) {
+    refused_within(args, expected, Duration::from_secs(120));
+}
+
+/// A floor lit by a ceiling light of radiance `ke` (grey), as OBJ + MTL in `dir`.
+fn lit_floor(dir: &Path, ke: &str) -> PathBuf {
+    let obj = dir.join("lit.obj");
+    std::fs::write(
+        &obj,
+        "mtllib lit.mtl\n\
+         v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\n\
+         v 0.25 1 0.25\nv 0.75 1 0.25\nv 0.75 1 0.75\nv 0.25 1 0.75\n\
+         usemtl floor\nf 1 4 3 2\n\
+         usemtl light\nf 5 6 7 8\n",
+    )
+    .expect("write obj");
+    std::fs::write(
+        dir.join("lit.mtl"),
+        format!("newmtl floor\nKd 0.5 0.5 0.5\nnewmtl light\nKd 0 0 0\nKe {ke} {ke} {ke}\n"),
+    )
+    .expect("write mtl");
+    obj
+}
+
+#[test]
+fn screenshot_waits_are_bounded_instead_of_panicking() {
+    // 1e20 s is past u64 seconds: Duration::from_secs_f64 panicked on it.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let shot = dir.path().join("s.png");
+    let shot = shot.to_str().expect("utf-8");
+    for t in ["1e20", "inf", "0", "-1", "86401"] {
+        let flag = format!("--screenshot-timeout={t}");
+        refused(
+            &["view", "--screenshot", shot, &flag],
+            "--screenshot-timeout must be a number of seconds in (0, 86400]",
+        );
+    }
+    refused(
+        &["view", "--screenshot", shot, "--after-seconds", "1e20"],
+        "--after-seconds must be in 0..=86400",
+    );
+}
+
+#[test]
+fn image_sizes_and_sample_counts_have_upper_bounds() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("x.png");
+    let out = out.to_str().expect("utf-8");
+    let base = [
+        "render",
+        "--builtin",
+        "cornell",
+        "--out",
+        out,
+        "--shots",
+        "1",
+    ];
+    let with =
+        |extra: &[&'static str]| -> Vec<&str> { base.iter().chain(extra).copied().collect() };
+    let cases: [(&[&str], &str); 9] = [
+        (
+            &["--width", "8193"],
+            "--width must be in 1..=8192, got 8193",
+        ),
+        (
+            &["--height", "16384"],
+            "--height must be in 1..=8192, got 16384",
+        ),
+        (&["--width", "0"], "--width must be in 1..=8192, got 0"),
+        (&["--spp", "1048577"], "--spp must be in 1..=1048576"),
+        (&["--spp", "0"], "--spp must be in 1..=1048576, got 0"),
+        (&["--rays", "67108865"], "--rays must be in 1..=67108864"),
+        (&["--rays", "0"], "--rays must be in 1..=67108864, got 0"),
+        (
+            &["--vis-rays", "1048577"],
+            "--vis-rays must be in 1..=1048576",
+        ),
+        (
+            &["--vis-rays", "0"],
+            "--vis-rays must be in 1..=1048576, got 0",
+        ),
+    ];
+    for (extra, expected) in cases {
+        refused(&with(extra), expected);
+    }
+    // The path tracer shares the image flags.
+    refused(
+        &[
+            "reference",
+            "--builtin",
+            "cornell",
+            "--out",
+            out,
+            "--spp",
+            "2000000",
+        ],
+        "--spp must be in 1..=1048576",
+    );
+    // The largest accepted values pass the check (and fail only later, on purpose, here
+    // on a scene that does not exist) — the bounds are inclusive.
+    refused(
+        &[
+            "render",
+            "/nonexistent/scene.obj",
+            "--out",
+            out,
+            "--rays",
+            "67108864",
+            "--vis-rays",
+            "1048576",
+        ],
+        "/nonexistent/scene.obj",
+    );
+    // formfactor's sample counts.
+    let cases_file = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/formfactors.json");
+    let cases_file = cases_file.to_str().expect("utf-8");
+    refused(
+        &["formfactor", cases_file, "--rays", "67108865"],
+        "--rays must be in 1..=67108864",
+    );
+    refused(
+        &["formfactor", cases_file, "--vis-rays", "0"],
+        "--vis-rays must be in 1..=1048576, got 0",
+    );
+}
+
+#[test]
+fn patch_size_must_be_a_positive_number() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("x.png");
+    let out = out.to_str().expect("utf-8");
+    for p in ["NaN", "0", "-0.1", "inf"] {
+        refused(
+            &[
+                "render",
+                "--builtin",
+                "cornell",
+                "--out",
+                out,
+                "--shots",
+                "1",
+                "--patch-size",
+                p,
+            ],
+            "--patch-size must be a positive number",
+        );
+    }
+}
+
+#[test]
+fn output_paths_are_checked_before_the_scene_is_even_read() {
+    // The scene does not exist: if the output were checked after loading (or after the
+    // solve, as before), the message would be about the scene.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let missing = "/nonexistent/scene.obj";
+    let bmp = dir.path().join("x.bmp");
+    let bmp = bmp.to_str().expect("utf-8");
+    for cmd in ["render", "reference"] {
+        refused(&[cmd, missing, "--out", bmp], "unknown image extension");
+        refused(
+            &[cmd, missing, "--out", "/nonexistent/folder/x.png"],
+            "the folder /nonexistent/folder does not exist",
+        );
+    }
+    let png = dir.path().join("x.png");
+    let png = png.to_str().expect("utf-8");
+    refused(
+        &[
+            "render",
+            missing,
+            "--out",
+            png,
+            "--log",
+            "/nonexistent/folder/log.csv",
+        ],
+        "--log /nonexistent/folder/log.csv: the folder /nonexistent/folder does not exist",
+    );
+    refused(
+        &[
+            "render",
+            missing,
+            "--out",
+            png,
+            "--elements-csv",
+            "/nonexistent/folder/e.csv",
+        ],
+        "--elements-csv /nonexistent/folder/e.csv",
+    );
+    refused(
+        &["view", missing, "--screenshot", "/nonexistent/folder/s.png"],
+        "--screenshot /nonexistent/folder/s.png",
+    );
+}
+
+#[test]
+fn overflowing_emission_is_refused_and_render_ends() {
+    // Ke = 1e308 per channel: Σ Ke × area overflows to infinity, the unshot fraction was
+    // inf/inf = NaN, `NaN <= target` never held, and a render without --shots/--seconds
+    // never ended. The limit makes a regression fail instead of hang.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let obj = lit_floor(dir.path(), "1e308");
+    let out = dir.path().join("x.png");
+    refused_within(
+        &[
+            "render",
+            obj.to_str().expect("utf-8"),
+            "--out",
+            out.to_str().expect("utf-8"),
+        ],
+        "the emitted power",
+        Duration::from_secs(60),
+    );
+    assert!(!out.exists(), "no image for a refused scene");
+}
+
+#[test]
+fn the_solver_refuses_power_that_would_overflow_and_keeps_its_state() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let opts = LoadOptions::default();
+    // Finite Ke whose power overflows only through interreflection: 1e306 × 3 channels ×
+    // 0.25 m² is 7.5e305, finite, but the floor's ρ = 0.999 multiplies what a solve
+    // carries by 1000.
+    let hot = lit_floor(dir.path(), "1e306");
+    std::fs::write(
+        dir.path().join("lit.mtl"),
+        "newmtl floor\nKd 0.999 0.999 0.999\nnewmtl light\nKd 0 0 0\nKe 1e306 1e306 1e306\n",
+    )
+    .expect("write mtl");
+    let scene = Scene::load_obj(&hot, &opts).expect("loads: every value is finite");
+    let config = || SolverConfig {
+        element_size: Some(0.25),
+        ..Default::default()
+    };
+    match ProgressiveSolver::new(scene, config()) {
+        Err(SolverError::PowerOverflow { emitted }) => {
+            assert!(emitted.is_finite() && emitted > 1e305, "{emitted}");
+        }
+        Err(e) => panic!("wrong error: {e}"),
+        Ok(_) => panic!("a solve whose power overflows was accepted"),
+    }
+
+    // An ordinary scene, then an edit that would overflow: refused, nothing changes.
+    let obj = lit_floor(dir.path(), "10");
+    let scene = Scene::load_obj(&obj, &opts).expect("load");
+    let light = MaterialId(
+        scene
+            .materials
+            .iter()
+            .position(|m| m.name == "light")
+            .expect("light") as u32,
+    );
+    let mut solver = ProgressiveSolver::new(scene, config()).expect("solver");
+    let never = AtomicBool::new(false);
+    solver.shoot(&never).expect("one shot");
+    let before_radiosity = solver.radiosity().to_vec();
+    let before_fraction = solver.unshot_fraction();
+    let err = solver
+        .set_material(light, Rgb::ZERO, Rgb::splat(1e308))
+        .expect_err("overflowing emission");
+    assert!(err.to_string().contains("emitted power"), "{err}");
+    assert_eq!(solver.radiosity(), &before_radiosity[..]);
+    assert_eq!(solver.unshot_fraction(), before_fraction);
+    let m = &solver.scene().materials[light.0 as usize];
+    assert_eq!(m.emission, Rgb::splat(10.0));
+    // A large but safe edit still goes through, and the solve to a target ends.
+    solver
+        .set_material(light, Rgb::ZERO, Rgb::splat(1e200))
+        .expect("large but finite power");
+    solver.run(
+        &StopCriteria {
+            unshot: 1e-3,
+            max_shots: Some(10_000),
+            max_seconds: Some(60.0),
+        },
+        &never,
+        &mut |r| assert!(r.unshot_fraction.is_finite(), "{r:?}"),
+    );
+    assert!(
+        solver.unshot_fraction() <= 1e-3,
+        "{}",
+        solver.unshot_fraction()
+    );
+}
