@@ -15,6 +15,7 @@ use crate::solver::SolverConfig;
 use super::UiOptions;
 use super::automation::{Automation, ScreenshotWhen, ShotState};
 use super::camera::OrbitCamera;
+use super::dialog::{Dialogs, Outcome, Purpose, Request};
 use super::export;
 use super::frame_log::{EditLatency, FrameLog, FrameRow};
 use super::panels::{self, Action, PanelState, ViewSettings};
@@ -40,6 +41,8 @@ pub struct ViewerApp {
     /// Viewport PNG export waiting for its screenshot.
     pub(super) png_export: Option<(PathBuf, egui::Rect)>,
     pub(super) png_image: Arc<Latest<Arc<egui::ColorImage>>>,
+    /// The file dialog in progress (runs on its own thread).
+    dialogs: Dialogs,
     pub(super) edits_sent: bool,
     pub(super) edit_latency: EditLatency,
     pub(super) frame_log: FrameLog,
@@ -126,6 +129,7 @@ impl ViewerApp {
             screenshot_image: Arc::new(Latest::default()),
             png_export: None,
             png_image: Arc::new(Latest::default()),
+            dialogs: Dialogs::default(),
             edits_sent: false,
             edit_latency: EditLatency::default(),
             frame_log: FrameLog::default(),
@@ -228,14 +232,10 @@ impl ViewerApp {
             Action::Solver(c) => self.solver.queue(c),
             Action::Remesh(size) => self.solver.queue(Command::Remesh(size)),
             Action::SetMethod(m) => self.solver.queue(Command::SetMethod(m)),
-            Action::OpenDialog => {
-                let picked = rfd::FileDialog::new()
-                    .add_filter("Wavefront OBJ", &["obj"])
-                    .pick_file();
-                if let Some(p) = picked {
-                    self.handle(ctx, Action::Open(p));
-                }
-            }
+            Action::OpenDialog => self.open_dialog(
+                ctx,
+                Request::new(Purpose::Open, ("Wavefront OBJ", "obj"), false),
+            ),
             Action::Open(p) => {
                 self.message(false, format!("opening {}", p.display()));
                 self.solver.queue(Command::LoadPath(p));
@@ -256,16 +256,14 @@ impl ViewerApp {
             }
             Action::SaveMtlAs => {
                 if let Some(s) = self.snapshot.clone() {
-                    let mut dialog = rfd::FileDialog::new().add_filter("MTL", &["mtl"]);
-                    if let Some(dir) = s.scene_source.as_deref().and_then(Path::parent) {
-                        dialog = dialog.set_directory(dir);
-                    }
-                    if let Some(p) = dialog
-                        .set_file_name(format!("{}.mtl", s.scene_name))
-                        .save_file()
-                    {
-                        self.save_mtl(&s, &p);
-                    }
+                    let mut r = Request::new(Purpose::SaveMtlAs, ("MTL", "mtl"), true);
+                    r.directory = s
+                        .scene_source
+                        .as_deref()
+                        .and_then(Path::parent)
+                        .map(Path::to_path_buf);
+                    r.file_name = Some(format!("{}.mtl", s.scene_name));
+                    self.open_dialog(ctx, r);
                 }
             }
             Action::ResetEdits => {
@@ -274,23 +272,15 @@ impl ViewerApp {
             }
             Action::ExportPly => {
                 if let Some(s) = self.snapshot.clone() {
-                    let picked = rfd::FileDialog::new()
-                        .add_filter("PLY", &["ply"])
-                        .set_file_name(format!("{}.ply", s.scene_name))
-                        .save_file();
-                    if let Some(p) = picked {
-                        self.export_ply(&s, &p);
-                    }
+                    let mut r = Request::new(Purpose::ExportPly, ("PLY", "ply"), true);
+                    r.file_name = Some(format!("{}.ply", s.scene_name));
+                    self.open_dialog(ctx, r);
                 }
             }
             Action::ExportPng => {
-                let picked = rfd::FileDialog::new()
-                    .add_filter("PNG", &["png"])
-                    .set_file_name("viewport.png")
-                    .save_file();
-                if let Some(p) = picked {
-                    self.request_viewport_png(ctx, p);
-                }
+                let mut r = Request::new(Purpose::ExportPng, ("PNG", "png"), true);
+                r.file_name = Some("viewport.png".into());
+                self.open_dialog(ctx, r);
             }
             Action::FrameScene => {
                 if let (Some(c), Some(s)) = (self.camera.as_mut(), &self.snapshot) {
@@ -320,6 +310,41 @@ impl ViewerApp {
                 });
             }
             Action::Quit => ctx.send_viewport_cmd(egui::ViewportCommand::Close),
+        }
+    }
+
+    fn open_dialog(&mut self, ctx: &egui::Context, request: Request) {
+        let c = ctx.clone();
+        if let Err(e) = self.dialogs.open(request, move || c.request_repaint()) {
+            self.message(true, e);
+        }
+    }
+
+    /// Acts on a dialog's answer: the path goes where the dialog was opened for (the
+    /// snapshot then on screen is the one saved or exported).
+    fn finish_dialog(&mut self, ctx: &egui::Context) {
+        let Some(outcome) = self.dialogs.poll() else {
+            return;
+        };
+        match outcome {
+            Outcome::Chosen(purpose, p) => match purpose {
+                Purpose::Open => self.handle(ctx, Action::Open(p)),
+                Purpose::SaveMtlAs => {
+                    if let Some(s) = self.snapshot.clone() {
+                        self.save_mtl(&s, &p);
+                    }
+                }
+                Purpose::ExportPly => {
+                    if let Some(s) = self.snapshot.clone() {
+                        self.export_ply(&s, &p);
+                    }
+                }
+                Purpose::ExportPng => self.request_viewport_png(ctx, p),
+            },
+            Outcome::Cancelled(_) => {}
+            Outcome::Failed(purpose) => {
+                self.message(true, format!("the file dialog ({purpose:?}) failed"));
+            }
         }
     }
 
@@ -397,6 +422,7 @@ impl eframe::App for ViewerApp {
         if self.solver.queued() > 0 {
             ctx.request_repaint();
         }
+        self.finish_dialog(ctx);
         self.finish_viewport_png(ctx);
     }
 

@@ -11,13 +11,15 @@
 //! - [`automation`]: `--screenshot`, `--edit`: reproducible runs for screenshots and
 //!   tests; [`frame_log`]: `--frame-log`, the timings and latency figures in
 //!   docs/VIEWER.md.
-//! - [`export`]: PLY, MTL and PNG files, written atomically.
+//! - [`export`]: PLY, MTL and PNG files, written atomically; [`dialog`]: rfd file dialogs
+//!   on their own thread, so the viewport keeps drawing while one is open.
 //!
 //! Nothing here is used by the core; the core never imports egui, eframe or wgpu.
 
 pub mod app;
 pub mod automation;
 pub mod camera;
+pub mod dialog;
 pub mod export;
 pub mod frame_log;
 mod panels;
