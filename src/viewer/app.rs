@@ -385,8 +385,7 @@ impl ViewerApp {
             return;
         };
         let crop = image.region(&rect, Some(ctx.pixels_per_point()));
-        let rgba: Vec<u8> = crop.pixels.iter().flat_map(|c| c.to_array()).collect();
-        match export::write_png(&path, crop.size[0] as u32, crop.size[1] as u32, &rgba) {
+        match export::write_color_image(&path, &crop) {
             Ok(()) => self.message(false, format!("saved {}", path.display())),
             Err(e) => self.message(true, e.to_string()),
         }

@@ -256,19 +256,10 @@ impl ViewerApp {
             }
             ShotState::Requested(at) => {
                 if let Some(image) = self.screenshot_image.take() {
-                    let rgba: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_array()).collect();
-                    let saved = export::write_png(
-                        &plan.path,
-                        image.size[0] as u32,
-                        image.size[1] as u32,
-                        &rgba,
-                    );
+                    let saved = export::write_color_image(&plan.path, &image);
                     if let Some(p) = self.auto.viewport_png.clone() {
                         let crop = image.region(&self.viewport_rect, Some(ctx.pixels_per_point()));
-                        let rgba: Vec<u8> = crop.pixels.iter().flat_map(|c| c.to_array()).collect();
-                        if let Err(e) =
-                            export::write_png(&p, crop.size[0] as u32, crop.size[1] as u32, &rgba)
-                        {
+                        if let Err(e) = export::write_color_image(&p, &crop) {
                             self.fail(ctx, e.to_string());
                             return;
                         }

@@ -48,15 +48,10 @@ pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
     result.map_err(io)
 }
 
-/// Linear radiance to an 8-bit sRGB value after exposure (the viewport's own transfer).
+/// Linear radiance to an 8-bit sRGB value after exposure (the viewport's own transfer;
+/// the encoding is the renderer's [`crate::render::image::srgb8`]).
 pub fn srgb8(linear: f32, exposure: f32) -> u8 {
-    let x = (linear * exposure).clamp(0.0, 1.0);
-    let s = if x <= 0.003_130_8 {
-        x * 12.92
-    } else {
-        1.055 * x.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0 + 0.5).clamp(0.0, 255.0) as u8
+    crate::render::image::srgb8(f64::from(linear) * f64::from(exposure))
 }
 
 /// The solution as binary PLY: display vertices with float radiance (`radiance_r/g/b`,
@@ -165,6 +160,12 @@ pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()
             message: e.to_string(),
         })?;
     atomic_write(path, &bytes)
+}
+
+/// Writes an egui image (a window screenshot, or a region of one) as PNG, atomically.
+pub fn write_color_image(path: &Path, image: &eframe::egui::ColorImage) -> Result<(), ExportError> {
+    let rgba: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_array()).collect();
+    write_png(path, image.size[0] as u32, image.size[1] as u32, &rgba)
 }
 
 use image::ImageEncoder as _;
