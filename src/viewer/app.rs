@@ -112,6 +112,7 @@ impl ViewerApp {
             selection: options.automation.select,
             recent,
             messages: Vec::new(),
+            solver_failure: None,
             show_plot: true,
         };
         let log_frames = options.automation.frame_log.is_some();
@@ -214,6 +215,10 @@ impl ViewerApp {
     fn on_event(&mut self, e: Event) {
         match e {
             Event::Error(text) => self.message(true, text),
+            Event::Failed(text) => {
+                self.panel.solver_failure = Some(text.clone());
+                self.message(true, text);
+            }
             Event::Loaded { name, source } => {
                 if let Some(p) = source {
                     let p = std::fs::canonicalize(&p).unwrap_or(p);
@@ -221,6 +226,7 @@ impl ViewerApp {
                     self.panel.recent.insert(0, p);
                     self.panel.recent.truncate(MAX_RECENT);
                 }
+                self.panel.solver_failure = None;
                 self.message(false, format!("loaded {name}"));
             }
         }

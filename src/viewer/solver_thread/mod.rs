@@ -71,6 +71,11 @@ pub enum Command {
     /// Stop shooting below this unshot fraction.
     SetStopThreshold(f64),
     Quit,
+    /// Test hook: the next shot panics with this message, to check that a panic in the
+    /// solver is reported and the thread lives on (tests/viewer_panic.rs). Not reachable
+    /// from the UI.
+    #[doc(hidden)]
+    PanicOnNextShot(String),
 }
 
 impl Command {
@@ -85,6 +90,10 @@ impl Command {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Event {
     Error(String),
+    /// The solver panicked: "solver failed on <scene>: <message>". The solver it was
+    /// working on is gone (nothing more is published for it, so the last snapshot stays on
+    /// screen); the thread takes commands as before, so another scene can be loaded.
+    Failed(String),
     Loaded {
         name: String,
         source: Option<PathBuf>,

@@ -1,6 +1,7 @@
 //! The solver thread's side: a [`Worker`] owns the [`ProgressiveSolver`], applies
 //! [`Command`]s, shoots while there is something to shoot, and publishes [`Snapshot`]s.
 
+use std::panic::AssertUnwindSafe;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TryRecvError, TrySendError};
@@ -43,6 +44,8 @@ pub(super) struct Worker {
     /// A material edit was applied and not yet published.
     edit_unpublished: bool,
     edit_published: Option<Instant>,
+    /// Set by [`Command::PanicOnNextShot`].
+    panic_on_next_shot: Option<String>,
 }
 
 enum Flow {
@@ -84,11 +87,13 @@ impl Worker {
             dirty: false,
             edit_unpublished: false,
             edit_published: None,
+            panic_on_next_shot: None,
         }
     }
 
     pub(super) fn run(mut self, scene: Scene) {
-        self.install(scene, self.config.clone());
+        let config = self.config.clone();
+        self.guarded(Some(scene.name.clone()), true, |w| w.install(scene, config));
         loop {
             self.cancel.store(false, Ordering::Relaxed);
             // Drain what is queued; block only when there is nothing to shoot.
@@ -101,7 +106,7 @@ impl Worker {
                     }
                 } else {
                     if self.dirty {
-                        self.publish();
+                        self.guarded(None, false, Self::publish);
                     }
                     // Wake up now and then even if idle so a lost waker cannot stall
                     // anything; no work is done on these wake-ups.
@@ -111,14 +116,60 @@ impl Worker {
                         Err(RecvTimeoutError::Disconnected) => return,
                     }
                 };
-                if let Flow::Quit = self.apply(command) {
+                let (scene, loads) = match &command {
+                    Command::LoadPath(p) => (Some(p.display().to_string()), true),
+                    Command::LoadScene(s) => (Some(s.name.clone()), true),
+                    _ => (None, false),
+                };
+                if let Some(Flow::Quit) = self.guarded(scene, loads, |w| w.apply(command)) {
                     return;
                 }
             }
             if self.dirty && self.due() {
-                self.publish();
+                self.guarded(None, false, Self::publish);
             }
-            self.shoot_once();
+            self.guarded(None, false, Self::shoot_once);
+        }
+    }
+
+    /// Runs `work` (shooting, re-meshing, loading, publishing: everything that calls into
+    /// the solver) and turns a panic in it into [`Event::Failed`] naming `scene` (default:
+    /// the current one). The solver is dropped, since its state after a panic is unknown,
+    /// unless `loads` and the panic came before the new scene was installed (the current
+    /// one is then untouched and stays, as for a load error). Nothing is published after a
+    /// drop, so the UI keeps the last snapshot; the thread lives on for new commands.
+    fn guarded<T>(
+        &mut self,
+        scene: Option<String>,
+        loads: bool,
+        work: impl FnOnce(&mut Self) -> T,
+    ) -> Option<T> {
+        let scene_rev = self.scene_rev;
+        let scene = scene.unwrap_or_else(|| {
+            self.solver
+                .as_ref()
+                .map_or_else(|| "no scene".to_string(), |s| s.scene().name.clone())
+        });
+        match std::panic::catch_unwind(AssertUnwindSafe(|| work(self))) {
+            Ok(v) => Some(v),
+            Err(payload) => {
+                let message = payload
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| payload.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "(no message)".to_string());
+                if !(loads && self.scene_rev == scene_rev) {
+                    self.solver = None;
+                    self.geometry = None;
+                    self.playing = false;
+                    self.steps = 0;
+                    self.dirty = false;
+                }
+                self.send_event(Event::Failed(format!(
+                    "solver failed on {scene}: {message}"
+                )));
+                None
+            }
         }
     }
 
@@ -140,6 +191,9 @@ impl Worker {
     fn shoot_once(&mut self) {
         if !self.wants_to_shoot() {
             return;
+        }
+        if let Some(message) = self.panic_on_next_shot.take() {
+            panic!("{message}");
         }
         let Some(solver) = self.solver.as_mut() else {
             return;
@@ -220,6 +274,7 @@ impl Worker {
     fn apply(&mut self, command: Command) -> Flow {
         match command {
             Command::Quit => return Flow::Quit,
+            Command::PanicOnNextShot(message) => self.panic_on_next_shot = Some(message),
             Command::Play => self.playing = true,
             Command::Pause => {
                 self.playing = false;
