@@ -200,6 +200,7 @@ impl ViewerApp {
             self.resync_editor_after = None;
         }
         self.edit_latency.on_snapshot(&s, &mut self.frame_log);
+        self.frame_log.mesh_size = Some((s.radiance.len(), s.geometry.indices.len() / 3));
         // The material changed from elsewhere (reset, scripted edit): show its new values.
         if let Some(ed) = &self.panel.editor
             && !self.edit_latency.waits_for(ed.material)

@@ -35,6 +35,9 @@ pub struct FrameLog {
     pub edit_latency_ms: Vec<f64>,
     /// Edit sent → the solver thread published a snapshot with it.
     pub edit_publish_ms: Vec<f64>,
+    /// Of the last snapshot drawn: drawn vertices and display triangles (radiance, 12 bytes
+    /// a vertex, is what a new snapshot uploads).
+    pub mesh_size: Option<(usize, usize)>,
 }
 
 fn percentile(values: &[f64], p: f64) -> f64 {
@@ -101,6 +104,13 @@ impl FrameLog {
             opt(self.first_light_ms),
             opt(self.first_shot_ms)
         ));
+        if let Some((vertices, triangles)) = self.mesh_size {
+            s.push_str(&format!(
+                "# radiance upload per new snapshot: {} bytes ({vertices} drawn vertices, {triangles} triangles; per triangle corner it would be {} bytes)\n",
+                vertices * 12,
+                triangles * 3 * 12
+            ));
+        }
         for (l, p) in self.edit_latency_ms.iter().zip(&self.edit_publish_ms) {
             s.push_str(&format!(
                 "# edit sent -> published by the solver thread ms {p:.1}, -> drawn ms {l:.1}\n"

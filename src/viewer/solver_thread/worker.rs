@@ -13,7 +13,7 @@ use crate::mesh::PatchId;
 use crate::scene::{LoadOptions, Material, MaterialId, Rgb, Scene};
 use crate::solver::{ProgressiveSolver, SolverConfig};
 
-use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, Stats, corner_reflectance};
+use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, Stats, vertex_reflectance};
 use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
 
 pub(super) struct Worker {
@@ -260,7 +260,7 @@ impl Worker {
         let Some(solver) = &self.solver else { return };
         let g = Geometry::from_mesh(self.next_id, solver.mesh());
         self.next_id += 1;
-        self.reflectance = Arc::new(corner_reflectance(&g, solver));
+        self.reflectance = Arc::new(vertex_reflectance(&g, solver));
         self.reflectance_rev += 1;
         self.geometry = Some(Arc::new(g));
     }
@@ -381,7 +381,7 @@ impl Worker {
             Ok(()) => {
                 self.edit_unpublished = true;
                 if let Some(g) = &self.geometry {
-                    self.reflectance = Arc::new(corner_reflectance(g, s));
+                    self.reflectance = Arc::new(vertex_reflectance(g, s));
                     self.reflectance_rev += 1;
                 }
             }
