@@ -27,33 +27,33 @@ const RECENT_KEY: &str = "nusselt.recent";
 const MAX_RECENT: usize = 10;
 
 pub struct ViewerApp {
-    pub(super) solver: SolverHandle,
+    solver: SolverHandle,
     pub(super) snapshot: Option<Arc<Snapshot>>,
-    pub(super) new_snapshot: bool,
-    pub(super) scene_rev: Option<u64>,
+    new_snapshot: bool,
+    scene_rev: Option<u64>,
     pub(super) camera: Option<OrbitCamera>,
     pub(super) viewport_rect: egui::Rect,
     pub(super) panel: PanelState,
-    pub(super) resync_editor_after: Option<u64>,
+    resync_editor_after: Option<u64>,
     pub(super) auto: Automation,
     pub(super) shot_state: ShotState,
     pub(super) screenshot_image: Arc<Latest<Arc<egui::ColorImage>>>,
     /// Viewport PNG export waiting for its screenshot.
-    pub(super) png_export: Option<(PathBuf, egui::Rect)>,
-    pub(super) png_image: Arc<Latest<Arc<egui::ColorImage>>>,
+    png_export: Option<(PathBuf, egui::Rect)>,
+    png_image: Arc<Latest<Arc<egui::ColorImage>>>,
     /// The file dialog in progress (runs on its own thread).
     dialogs: Dialogs,
     pub(super) edits_sent: bool,
     pub(super) edit_latency: EditLatency,
-    pub(super) frame_log: FrameLog,
-    pub(super) log_frames: bool,
-    pub(super) started: Instant,
+    frame_log: FrameLog,
+    log_frames: bool,
+    started: Instant,
     pub(super) first_frame: Option<Instant>,
-    pub(super) last_frame: Option<Instant>,
-    pub(super) logic_start: Option<Instant>,
+    last_frame: Option<Instant>,
+    logic_start: Option<Instant>,
     /// Set when a scripted run fails (read by `viewer::run` after the window closes).
-    pub(super) outcome: Arc<Mutex<Option<String>>>,
-    pub(super) persist: bool,
+    outcome: Arc<Mutex<Option<String>>>,
+    persist: bool,
 }
 
 /// The solver thread's settings for these options.
