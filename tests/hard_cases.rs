@@ -226,10 +226,7 @@ fn dark_under_boxes(s: &ProgressiveSolver, gap: f64) -> Result<(), String> {
             continue;
         }
         // Elements wholly inside a footprint (every corner inside, centroid at depth d).
-        let inside = e
-            .corners()
-            .iter()
-            .all(|c| depth_inside(c.x, c.z).is_some());
+        let inside = e.corners().iter().all(|c| depth_inside(c.x, c.z).is_some());
         let Some(d) = depth_inside(e.centroid.x, e.centroid.z) else {
             continue;
         };
@@ -266,7 +263,9 @@ fn dark_under_boxes(s: &ProgressiveSolver, gap: f64) -> Result<(), String> {
          {bad} over the slit bound"
     );
     if checked < 16 {
-        return Err(format!("{name}: only {checked} elements lie under the boxes"));
+        return Err(format!(
+            "{name}: only {checked} elements lie under the boxes"
+        ));
     }
     match worst {
         None => Ok(()),
@@ -335,7 +334,9 @@ fn contact_and_a_gap_of_1e_6_agree_on_every_visible_surface() {
             &(|j| outside_floor(&a, j)) as &dyn Fn(usize) -> bool,
             &(|j| outside_floor(&b, j)) as &dyn Fn(usize) -> bool,
         ),
-        ("floor band around the boxes", &|j| band(&a, j), &|j| band(&b, j)),
+        ("floor band around the boxes", &|j| band(&a, j), &|j| {
+            band(&b, j)
+        }),
         ("walls", &|j| material_name(&a, j) == "wall", &|j| {
             material_name(&b, j) == "wall"
         }),
@@ -514,10 +515,16 @@ fn element_mean(corners: &[DVec3], f: &dyn Fn(DVec3) -> f64) -> f64 {
         // Midpoints of the n² sub-triangles of a regular split.
         for i in 0..n {
             for j in 0..n - i {
-                let (u, v) = ((i as f64 + 1.0 / 3.0) / n as f64, (j as f64 + 1.0 / 3.0) / n as f64);
+                let (u, v) = (
+                    (i as f64 + 1.0 / 3.0) / n as f64,
+                    (j as f64 + 1.0 / 3.0) / n as f64,
+                );
                 s += f(a + (b - a) * u + (c - a) * v);
                 if i + j + 1 < n {
-                    let (u, v) = ((i as f64 + 2.0 / 3.0) / n as f64, (j as f64 + 2.0 / 3.0) / n as f64);
+                    let (u, v) = (
+                        (i as f64 + 2.0 / 3.0) / n as f64,
+                        (j as f64 + 2.0 / 3.0) / n as f64,
+                    );
                     s += f(a + (b - a) * u + (c - a) * v);
                 }
             }
@@ -638,7 +645,10 @@ fn open_plates_account_for_the_escaped_power() {
     let f_corner = point_to_parallel_rect(0.0, 0.0, 1.0, [0.0, 0.0, 1.0, 1.0]);
     let f_centre = point_to_parallel_rect(0.5, 0.5, 1.0, [0.0, 0.0, 1.0, 1.0]);
     assert!((f12 - 0.19982).abs() < 1e-4, "catalogue value F12 = {f12}");
-    for (file, rho) in [("open_plates_black.obj", 0.0), ("open_plates_grey.obj", 0.5)] {
+    for (file, rho) in [
+        ("open_plates_black.obj", 0.0),
+        ("open_plates_grey.obj", 0.5),
+    ] {
         let mut s = solver(load(file), 0.05, 0.1);
         converge(&mut s, 1e-3);
         assert_sane(&s);
@@ -733,5 +743,8 @@ fn hard_cases_mesh_at_default_size_within_the_budget() {
             bad.push(format!("{name}: {elements} elements"));
         }
     }
-    assert!(bad.is_empty(), "meshes over 40,000 elements at the default size: {bad:?}");
+    assert!(
+        bad.is_empty(),
+        "meshes over 40,000 elements at the default size: {bad:?}"
+    );
 }

@@ -245,7 +245,11 @@ fn default_view_shows_every_model() {
             ));
         }
     }
-    assert!(bad.is_empty(), "default views that do not show the model:\n{}", bad.join("\n"));
+    assert!(
+        bad.is_empty(),
+        "default views that do not show the model:\n{}",
+        bad.join("\n")
+    );
 }
 
 #[test]
@@ -571,8 +575,7 @@ fn soup_obj(points: &[(i8, i8, i8)], tris: &[(usize, usize, usize, u8)]) -> Stri
     obj
 }
 
-const SOUP_MTL: &str =
-    "newmtl light\nKd 0.5 0.5 0.5\nKe 5 5 5\nnewmtl grey\nKd 0.8 0.8 0.8\nnewmtl dark\nKd 0.1 0.2 0.3\n";
+const SOUP_MTL: &str = "newmtl light\nKd 0.5 0.5 0.5\nKe 5 5 5\nnewmtl grey\nKd 0.8 0.8 0.8\nnewmtl dark\nKd 0.1 0.2 0.3\n";
 
 proptest! {
     #![proptest_config(ProptestConfig {
