@@ -143,7 +143,7 @@ fn assert_closed_balance(s: &ProgressiveSolver) {
     }
 }
 
-fn material_name<'a>(s: &'a ProgressiveSolver, element: usize) -> &'a str {
+fn material_name(s: &ProgressiveSolver, element: usize) -> &str {
     let p = s.mesh().patch(s.mesh().elements[element].patch);
     &s.scene().materials[p.material.0 as usize].name
 }
