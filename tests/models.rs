@@ -311,6 +311,45 @@ fn every_corpus_file_is_what_the_script_writes() {
     );
 }
 
+/// `nusselt render` with default flags on every model, 10 shots: it exits 0, or with an
+/// error message that names the model; never with a panic (the issue: a panic in the solver
+/// becomes an error naming the scene).
+#[test]
+fn cli_renders_every_model_with_default_flags_without_panicking() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("x.pfm");
+    let mut bad = Vec::new();
+    for file in CORPUS {
+        let path = model(file);
+        let start = Instant::now();
+        let run = Command::new(env!("CARGO_BIN_EXE_nusselt"))
+            .args(["render", path.to_str().expect("path"), "--out"])
+            .arg(&out)
+            .args([
+                "--shots", "30", "--width", "32", "--height", "24", "--spp", "1",
+            ])
+            .args(["--json", "--quiet"])
+            .output()
+            .expect("run nusselt");
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        eprintln!(
+            "{file}: exit {:?} in {:.1} s: {}",
+            run.status.code(),
+            start.elapsed().as_secs_f64(),
+            String::from_utf8_lossy(&run.stdout).trim()
+        );
+        if stderr.contains("panicked") || run.status.code() == Some(101) {
+            bad.push(format!("{file}: panicked: {}", stderr.trim()));
+        } else if !run.status.success() && !stderr.contains(file) {
+            bad.push(format!(
+                "{file}: error without the model's name: {}",
+                stderr.trim()
+            ));
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
 // ---------------------------------------------------------------------------------------
 // The scale series, through the CLI
 
