@@ -326,7 +326,7 @@ fn cli_renders_every_model_with_default_flags_without_panicking() {
             .args(["render", path.to_str().expect("path"), "--out"])
             .arg(&out)
             .args([
-                "--shots", "30", "--width", "32", "--height", "24", "--spp", "1",
+                "--shots", "10", "--width", "32", "--height", "24", "--spp", "1",
             ])
             .args(["--json", "--quiet"])
             .output()
