@@ -144,7 +144,7 @@ fn assert_closed_balance(s: &ProgressiveSolver) {
     }
 }
 
-fn material_name<'a>(s: &'a ProgressiveSolver, element: usize) -> &'a str {
+fn material_name(s: &ProgressiveSolver, element: usize) -> &str {
     let p = s.mesh().patch(s.mesh().elements[element].patch);
     &s.scene().materials[p.material.0 as usize].name
 }
@@ -191,14 +191,17 @@ fn contact_solve(file: &str, scale: f64) -> ProgressiveSolver {
     s
 }
 
-/// Light under a box lifted by `gap`, at a floor point at depth `d` inside its footprint:
-/// the point sees the room only through the slit between floor and box, at elevations
-/// below atan(gap / d); the cosine-weighted solid angle of that band is
-/// (1/π)∫dφ sin²θ/2 ≤ (gap/d)². What comes through has at most the largest radiance of
-/// the non-emitting surfaces (the ceiling light is not visible at such low elevations), and
-/// bounces between the floor and the box's bottom (ρ = 0.5 each) multiply it by at most
-/// 1/(1 − ρ) = 2. So H(point) ≤ 2 (gap/d)² · L_max.
-fn assert_dark_under_boxes(s: &ProgressiveSolver, gap: f64) {
+/// Light under a box lifted by `gap`, at a floor point at depth `d` inside its footprint
+/// (d > gap). Directly, the point sees the room only through the slit between floor and
+/// box, at elevations below atan(gap/d) < 45°; the cosine-weighted solid angle of that band
+/// is (1/π)∫dφ sin²θ/2 ≤ (gap/d)², and what it shows there is a wall, a box side or the
+/// far floor (the ceiling light is above 45° from every point under a box), so at most
+/// L_max, the largest radiance of a non-emitting surface. Indirectly, light comes from the
+/// box's bottom (ρ = 0.5), lit the same way; its bright rim (depth < gap) is seen from depth
+/// d through the parallel-plate kernel gap²/(π r⁴) ≤ gap²/(π d⁴), negligible, and the rest
+/// of it obeys the same (gap/d')² bound, so the floor–bottom inter-reflections add at most a
+/// factor 1/(1 − ρ) = 2: H(point) ≤ 2 (gap/d)² · L_max. At contact (gap 0) that is 0.
+fn dark_under_boxes(s: &ProgressiveSolver, gap: f64) -> Result<(), String> {
     let name = &s.scene().name;
     let radiance = s.element_radiance(false);
     let l_max = s
@@ -210,16 +213,21 @@ fn assert_dark_under_boxes(s: &ProgressiveSolver, gap: f64) {
         .map(|(j, _)| radiance[j].max_element())
         .fold(0.0, f64::max);
     let (floor_mean, _) = mean_over(s, s.incident(), |j| material_name(s, j) == "floor");
+    let floor_mean = floor_mean.max_element();
     let mut checked = 0;
+    let mut bad = 0;
+    let mut worst: Option<(f64, String)> = None;
+    let (mut power, mut area) = (0.0, 0.0);
     for (j, e) in s.mesh().elements.iter().enumerate() {
-        if material_name(s, j) != "floor" {
+        let m = material_name(s, j);
+        let floor = m == "floor";
+        // The boxes' bottom faces (normal −y) see only the floor under them and the slit.
+        let bottom = m == "block" && e.normal.y < -0.99;
+        if !floor && !bottom {
             continue;
         }
         // Elements wholly inside a footprint (every corner inside, centroid at depth d).
-        let inside = e
-            .corners()
-            .iter()
-            .all(|c| depth_inside(c.x, c.z).is_some());
+        let inside = e.corners().iter().all(|c| depth_inside(c.x, c.z).is_some());
         let Some(d) = depth_inside(e.centroid.x, e.centroid.z) else {
             continue;
         };
@@ -227,60 +235,70 @@ fn assert_dark_under_boxes(s: &ProgressiveSolver, gap: f64) {
             continue;
         }
         checked += 1;
-        // The slit bound, plus 1e-6 of the floor's mean for round-off in a correct solve.
-        let bound = 2.0 * (gap / d).powi(2) * l_max + 1e-6 * floor_mean.max_element();
         let h = s.incident()[j].max_element();
-        assert!(
-            h <= bound,
-            "{name}: floor element at ({:.3}, {:.3}), depth {d:.3} under a box (gap {gap}): \
-             incident {h:.4e} = {:.1} % of the floor's mean {:.4e}; bound {bound:.3e}",
-            e.centroid.x,
-            e.centroid.z,
-            100.0 * h / floor_mean.max_element(),
-            floor_mean.max_element()
-        );
-    }
-    assert!(
-        checked >= 8,
-        "{name}: only {checked} floor elements lie under the boxes"
-    );
-    // The boxes' bottom faces (normal −y) see only the floor under them and the slit.
-    for (j, e) in s.mesh().elements.iter().enumerate() {
-        if material_name(s, j) == "block" && e.normal.y < -0.99 {
-            let x = e.centroid;
-            let Some(d) = depth_inside(x.x, x.z) else {
-                continue;
-            };
-            let bound = 2.0 * (gap / d).powi(2) * l_max + 1e-6 * floor_mean.max_element();
-            let h = s.incident()[j].max_element();
-            assert!(
-                h <= bound,
-                "{name}: box bottom element at ({:.3}, {:.3}) gets {h:.4e} ({:.1} % of the \
-                 floor's mean); bound {bound:.3e}",
-                x.x,
-                x.z,
-                100.0 * h / floor_mean.max_element()
-            );
+        power += h * e.area;
+        area += e.area;
+        // The slit bound, plus 1e-6 of the floor's mean for round-off in a correct solve.
+        let bound = 2.0 * (gap / d).powi(2) * l_max + 1e-6 * floor_mean;
+        if h > bound {
+            bad += 1;
+            let excess = h / bound;
+            if worst.as_ref().is_none_or(|w| excess > w.0) {
+                worst = Some((
+                    excess,
+                    format!(
+                        "{} element at ({:.3}, {:.3}), depth {d:.3}: incident {h:.4e} = {:.1} % \
+                         of the floor's mean {floor_mean:.4e}, bound {bound:.3e}",
+                        if floor { "floor" } else { "box bottom" },
+                        e.centroid.x,
+                        e.centroid.z,
+                        100.0 * h / floor_mean,
+                    ),
+                ));
+            }
         }
+    }
+    let mean_pct = 100.0 * power / area.max(f64::MIN_POSITIVE) / floor_mean;
+    eprintln!(
+        "{name}: {checked} hidden elements, mean incident {mean_pct:.2} % of the floor's mean, \
+         {bad} over the slit bound"
+    );
+    if checked < 16 {
+        return Err(format!(
+            "{name}: only {checked} elements lie under the boxes"
+        ));
+    }
+    match worst {
+        None => Ok(()),
+        Some((_, w)) => Err(format!(
+            "{name} (gap {gap}): {bad} of {checked} hidden elements get more light than the \
+             slit lets in (mean {mean_pct:.2} % of the floor's); worst: {w}"
+        )),
     }
 }
 
 #[test]
 fn boxes_resting_on_the_floor_leave_it_dark_underneath() {
     let s = contact_solve("contact_0.obj", 1.0);
-    assert_dark_under_boxes(&s, 0.0);
+    if let Err(e) = dark_under_boxes(&s, 0.0) {
+        panic!("{e}");
+    }
 }
 
 #[test]
 fn gaps_under_boxes_let_in_only_what_the_slit_allows() {
+    let mut failures = Vec::new();
     for (file, gap) in [
         ("contact_1e-2.obj", 1e-2),
         ("contact_1e-4.obj", 1e-4),
         ("contact_1e-6.obj", 1e-6),
     ] {
         let s = contact_solve(file, 1.0);
-        assert_dark_under_boxes(&s, gap);
+        if let Err(e) = dark_under_boxes(&s, gap) {
+            failures.push(e);
+        }
     }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
 /// A box 1e-6 above the floor is, to the light, a box on it: the slit passes (1e-6/d)² ≈
@@ -317,7 +335,9 @@ fn contact_and_a_gap_of_1e_6_agree_on_every_visible_surface() {
             &(|j| outside_floor(&a, j)) as &dyn Fn(usize) -> bool,
             &(|j| outside_floor(&b, j)) as &dyn Fn(usize) -> bool,
         ),
-        ("floor band around the boxes", &|j| band(&a, j), &|j| band(&b, j)),
+        ("floor band around the boxes", &|j| band(&a, j), &|j| {
+            band(&b, j)
+        }),
         ("walls", &|j| material_name(&a, j) == "wall", &|j| {
             material_name(&b, j) == "wall"
         }),
@@ -368,7 +388,9 @@ fn contact_scene_radiance_is_the_same_at_scale_1e_3_and_1e4() {
                 "{file}: element {j}: {a} at scale {scale} vs {b} at scale 1"
             );
         }
-        assert_dark_under_boxes(&s, 0.0);
+        if let Err(e) = dark_under_boxes(&s, 0.0) {
+            panic!("{file}: {e}");
+        }
     }
 }
 
@@ -494,10 +516,16 @@ fn element_mean(corners: &[DVec3], f: &dyn Fn(DVec3) -> f64) -> f64 {
         // Midpoints of the n² sub-triangles of a regular split.
         for i in 0..n {
             for j in 0..n - i {
-                let (u, v) = ((i as f64 + 1.0 / 3.0) / n as f64, (j as f64 + 1.0 / 3.0) / n as f64);
+                let (u, v) = (
+                    (i as f64 + 1.0 / 3.0) / n as f64,
+                    (j as f64 + 1.0 / 3.0) / n as f64,
+                );
                 s += f(a + (b - a) * u + (c - a) * v);
                 if i + j + 1 < n {
-                    let (u, v) = ((i as f64 + 2.0 / 3.0) / n as f64, (j as f64 + 2.0 / 3.0) / n as f64);
+                    let (u, v) = (
+                        (i as f64 + 2.0 / 3.0) / n as f64,
+                        (j as f64 + 2.0 / 3.0) / n as f64,
+                    );
                     s += f(a + (b - a) * u + (c - a) * v);
                 }
             }
@@ -618,7 +646,10 @@ fn open_plates_account_for_the_escaped_power() {
     let f_corner = point_to_parallel_rect(0.0, 0.0, 1.0, [0.0, 0.0, 1.0, 1.0]);
     let f_centre = point_to_parallel_rect(0.5, 0.5, 1.0, [0.0, 0.0, 1.0, 1.0]);
     assert!((f12 - 0.19982).abs() < 1e-4, "catalogue value F12 = {f12}");
-    for (file, rho) in [("open_plates_black.obj", 0.0), ("open_plates_grey.obj", 0.5)] {
+    for (file, rho) in [
+        ("open_plates_black.obj", 0.0),
+        ("open_plates_grey.obj", 0.5),
+    ] {
         let mut s = solver(load(file), 0.05, 0.1);
         converge(&mut s, 1e-3);
         assert_sane(&s);
@@ -713,5 +744,8 @@ fn hard_cases_mesh_at_default_size_within_the_budget() {
             bad.push(format!("{name}: {elements} elements"));
         }
     }
-    assert!(bad.is_empty(), "meshes over 40,000 elements at the default size: {bad:?}");
+    assert!(
+        bad.is_empty(),
+        "meshes over 40,000 elements at the default size: {bad:?}"
+    );
 }

@@ -157,7 +157,7 @@ impl ViewArgs {
         check_count("--spp", self.spp, MAX_SPP)?;
         let camera = match &self.camera {
             Some(text) => crate::scene::Camera::parse(text).context("--camera")?,
-            None => crate::render::view::default_camera(&scene),
+            None => crate::render::view::default_camera(scene),
         };
         Ok(crate::render::RenderSettings {
             width: self.width,

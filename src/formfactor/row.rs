@@ -103,9 +103,7 @@ pub(crate) fn contour_patch(
         poly.iter()
             .all(|v| (*v - of.centroid).dot(of.normal) <= 0.0)
     };
-    if k == shooter.0 as usize
-        || behind(&receiver.bounds, patch)
-        || behind(&patch.bounds, receiver)
+    if k == shooter.0 as usize || behind(&receiver.bounds, patch) || behind(&patch.bounds, receiver)
     {
         slice.fill(0.0);
         return;

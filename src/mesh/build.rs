@@ -219,7 +219,7 @@ fn push_elements(
 ) {
     subdivide(poly, size, &mut |corners: &[DVec3]| {
         let area = polygon::area(corners);
-        if !(area > 0.0) {
+        if area.is_nan() || area <= 0.0 {
             return;
         }
         let mut c = [DVec3::ZERO; 4];
@@ -391,7 +391,7 @@ pub(super) fn subdivide(poly: &[DVec3], size: f64, emit: &mut dyn FnMut(&[DVec3]
     for t in polygon::triangulate(poly) {
         let (a, b, c) = (poly[t[0]], poly[t[1]], poly[t[2]]);
         let area = polygon::area(&[a, b, c]);
-        if !(area > 0.0) {
+        if area.is_nan() || area <= 0.0 {
             continue;
         }
         let longest = (b - a)

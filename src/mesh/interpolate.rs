@@ -161,8 +161,7 @@ impl Mesh {
         };
         let mut index: HashMap<(u32, (i64, i64, i64)), u32> = HashMap::new();
         let mut vertex_group: Vec<u32> = Vec::new();
-        for ei in 0..self.elements.len() {
-            let group = element_group[ei];
+        for (ei, &group) in element_group.iter().enumerate() {
             for k in 0..self.elements[ei].corner_count as usize {
                 let p = self.elements[ei].corners[k];
                 let id = *index.entry((group, quant(p))).or_insert_with(|| {

@@ -184,7 +184,10 @@ impl Topology {
             }
             let nq = (normal[fi] * 1e4).round();
             let d = (normal[fi].dot(centroid[fi]) / (1e-5 * diag)).round();
-            let key = (f.material.0, [nq.x as i64, nq.y as i64, nq.z as i64, d as i64]);
+            let key = (
+                f.material.0,
+                [nq.x as i64, nq.y as i64, nq.z as i64, d as i64],
+            );
             let members = planes.entry(key).or_default();
             if let Some(&g) = members.first() {
                 display_uf.union(g, fi as u32);
@@ -199,7 +202,10 @@ impl Topology {
             key.sort_unstable();
             let q = (normal[fi] * 1e4).round();
             key.extend([q.x as i64 as u32, q.y as i64 as u32, q.z as i64 as u32]);
-            if seen.insert((faces[fi].material.0, key), fi as u32).is_some() {
+            if seen
+                .insert((faces[fi].material.0, key), fi as u32)
+                .is_some()
+            {
                 redundant[fi] = true;
             }
         }

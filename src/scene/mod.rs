@@ -212,14 +212,6 @@ impl Scene {
         crate::geometry::Aabb::from_points(self.faces.iter().flat_map(|f| f.vertices.iter()))
     }
 
-    /// The scene's camera, or one that frames it.
-    pub fn default_camera(&self) -> Camera {
-        self.camera.unwrap_or_else(|| {
-            let b = self.bounds();
-            Camera::framing(b.min, b.max)
-        })
-    }
-
     /// Total emitted power Σ E·A (per channel, radiance units × area).
     pub fn emitted_power(&self) -> Rgb {
         self.faces

@@ -290,9 +290,14 @@ impl ViewerApp {
                 self.open_dialog(ctx, r);
             }
             Action::FrameScene => {
-                if let (Some(c), Some(s)) = (self.camera.as_mut(), &self.snapshot) {
-                    let aspect = self.viewport_rect.aspect_ratio() as f64;
-                    c.frame(s.geometry.bounds_min, s.geometry.bounds_max, aspect);
+                // The chosen first view: the scene's own camera, or the view that sees the
+                // most lit surface (render::view).
+                if let Some(s) = &self.snapshot {
+                    self.camera = Some(OrbitCamera::from_camera(
+                        &s.scene_camera,
+                        s.geometry.bounds_min,
+                        s.geometry.bounds_max,
+                    ));
                 }
             }
             Action::ResetView => {

@@ -29,6 +29,9 @@ pub(super) struct Worker {
     reflectance_rev: u64,
     next_id: u64,
     scene_rev: u64,
+    /// The first view of the current scene (`render::view::default_camera`), chosen once
+    /// per load.
+    scene_camera: crate::scene::Camera,
     seq: u64,
     playing: bool,
     steps: usize,
@@ -75,6 +78,7 @@ impl Worker {
             reflectance_rev: 0,
             next_id: 1,
             scene_rev: 0,
+            scene_camera: crate::scene::Camera::cornell(),
             seq: 0,
             playing: config.play,
             steps: 0,
@@ -244,6 +248,7 @@ impl Worker {
         match ProgressiveSolver::new(scene, config.clone()) {
             Ok(solver) => {
                 self.loaded_materials = Arc::new(solver.scene().materials.clone());
+                self.scene_camera = crate::render::view::default_camera(solver.scene());
                 self.config = config;
                 self.solver = Some(solver);
                 self.scene_rev += 1;
@@ -447,7 +452,7 @@ impl Worker {
             scene_name: solver.scene().name.clone(),
             scene_source: solver.scene().source.clone(),
             scene_rev: self.scene_rev,
-            scene_camera: solver.scene().default_camera(),
+            scene_camera: self.scene_camera,
             two_sided: solver.scene().two_sided,
             method: solver.config().method,
         };
