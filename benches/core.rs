@@ -30,7 +30,7 @@ fn segments(mesh: &Mesh, n: usize) -> Vec<(DVec3, DVec3)> {
 fn bvh_rays(c: &mut Criterion) {
     let scene = cornell();
     let mesh = Mesh::build(&scene, 20.0).expect("mesh");
-    let bvh = Bvh::build(&Mesh::face_triangles(&scene));
+    let bvh = Bvh::build(&mesh.blocker_triangles(&scene));
     let segs = segments(&mesh, 100_000);
     let mut g = c.benchmark_group("bvh");
     g.throughput(Throughput::Elements(segs.len() as u64));

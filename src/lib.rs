@@ -38,7 +38,7 @@
 //!     vertex_radiance: &vertex,
 //!     bvh: &bvh,
 //! };
-//! let camera = solver.scene().default_camera();
+//! let camera = render::view::default_camera(solver.scene()); // the scene's own, here
 //! let settings = RenderSettings { width: 32, height: 32, spp: 1, camera, seed: 1 };
 //! let image = render::render_solution(&view, &settings);
 //!

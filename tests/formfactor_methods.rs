@@ -1,27 +1,29 @@
 //! Every form-factor method against the reference catalogue (tests/data/formfactors.json),
-//! the occluded cases (tests/data/formfactors_occluded.json), and as the solver's row.
+//! the occluded cases (tests/data/formfactors_occluded.json, references derived independently
+//! by scripts/occluded_reference.py), and as the solver's row.
 //!
-//! Tolerances are derived from each method's sample count: `raycast` and `montecarlo` must
-//! land within 4 standard errors, and their error must halve at 4× the samples (averaged
-//! over seeds); the hemicube within its boundary-pixel bound, shrinking with resolution.
+//! Each tolerance is derived from the method next to it: `raycast` within 4 binomial standard
+//! errors of its ray count; `montecarlo` unbiased to 4 standard errors of a 32-seed mean, the
+//! standard deviation measured about the seeds' own mean (so a bias cannot widen it), and its
+//! error halving at 4× the samples; the hemicube within a bound computed from its pixel size
+//! and the angles its polygons' edges subtend (`hemicube_bound`), at every resolution.
 
+use std::f64::consts::{PI, SQRT_2};
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 
+use glam::DVec3;
 use nusselt::cli::cases::{self, Case};
-use nusselt::formfactor::{FormFactorMethod, FormFactorParams};
+use nusselt::formfactor::{FormFactorMethod, FormFactorParams, contour, exact};
+use nusselt::geometry::polygon;
 use nusselt::scene::{LoadOptions, Scene};
 use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 
 mod common;
-use common::{catalogue, json_lines, load};
+use common::{catalogue, hemicube_bound, json_lines, load};
 
 fn is_disk(c: &Case) -> bool {
     c.a2.len() > 8
-}
-
-fn with(params: FormFactorParams) -> FormFactorParams {
-    params
 }
 
 #[test]
@@ -152,39 +154,122 @@ fn raycast_and_montecarlo_errors_halve_at_four_times_the_samples() {
     }
 }
 
+/// Mean and sample standard deviation (about that mean, not about the reference: a bias
+/// cannot widen it) of a sampling method's value over `seeds` seeds at `n` samples.
+fn seed_spread(c: &Case, method: FormFactorMethod, n: u32, seeds: u64) -> (f64, f64) {
+    let params = FormFactorParams {
+        rays: n,
+        ..Default::default()
+    };
+    seed_spread_with(c, method, &params, seeds)
+}
+
+/// [`seed_spread`] with `params` (seeds 100, 101, …).
+fn seed_spread_with(
+    c: &Case,
+    method: FormFactorMethod,
+    params: &FormFactorParams,
+    seeds: u64,
+) -> (f64, f64) {
+    let values: Vec<f64> = (0..seeds)
+        .map(|s| {
+            let p = FormFactorParams {
+                seed: 100 + s,
+                ..params.clone()
+            };
+            cases::evaluate(c, method, &p)
+        })
+        .collect();
+    let mean = values.iter().sum::<f64>() / seeds as f64;
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (seeds - 1) as f64;
+    (mean, var.sqrt())
+}
+
 #[test]
-fn montecarlo_is_within_four_standard_errors_away_from_contact() {
-    let n = 4096;
+fn montecarlo_is_unbiased_and_within_four_standard_errors_away_from_contact() {
+    let (n, seeds) = (4096, 32);
+    let mut checked = 0;
     for c in catalogue() {
         // Near contact the kernel's variance is unbounded (documented): skip those.
         if c.name.contains("close") || c.name.starts_with("perp") {
             continue;
         }
         let reference = c.exact.expect("exact");
-        // The standard error of this estimator, from its own spread over 32 seeds at n.
-        let rms = rms_error(&c, FormFactorMethod::Montecarlo, n, 32);
+        // σ: the standard deviation of one n-sample estimate, from 32 independent seeds.
+        let (mean, sigma) = seed_spread(&c, FormFactorMethod::Montecarlo, n, seeds);
+        // Unbiased: the 32-seed mean within 4 of its standard errors, σ/√32. (σ itself is
+        // estimated from 32 values, ±13 %; 4 standard errors still leave a Student-t tail
+        // of 4e-4.) A bias of 0.7 σ already fails here, where |error| ≤ 4·RMS never could.
+        let standard_error = sigma / (seeds as f64).sqrt();
+        eprintln!(
+            "{:32} mean {mean:.6} ref {reference:.6} σ {sigma:.2e} mean-ref {:+.2} σ/√32",
+            c.name,
+            (mean - reference) / standard_error
+        );
+        assert!(
+            (mean - reference).abs() <= 4.0 * standard_error,
+            "{}: biased: mean {mean} vs {reference} (σ/√32 = {standard_error:.2e})",
+            c.name
+        );
+        // One run (another seed) within 4 σ.
         let params = FormFactorParams {
             rays: n,
             seed: 5,
             ..Default::default()
         };
         let value = cases::evaluate(&c, FormFactorMethod::Montecarlo, &params);
-        eprintln!("{:32} {value:.6} ref {reference:.6} rms {rms:.2e}", c.name);
-        assert!((value - reference).abs() <= 4.0 * rms, "{}", c.name);
-        // And the spread itself is that of n samples of a bounded kernel: well under 10 %.
-        assert!(rms < 0.1 * reference, "{}: rms {rms}", c.name);
+        assert!(
+            (value - reference).abs() <= 4.0 * sigma,
+            "{}: {value}",
+            c.name
+        );
+        checked += 1;
+    }
+    assert!(checked >= 5, "{checked}");
+}
+
+fn vecs(p: &[[f64; 3]]) -> Vec<DVec3> {
+    p.iter().map(|x| DVec3::from_array(*x)).collect()
+}
+
+/// The exact value and the hemicube's bound ([`hemicube_bound`]) at the points where the
+/// case evaluation puts its hemicubes (one at a case's point, else `cases::integrate_fixed`'s
+/// 6×6 Gauss points per triangle of A1), averaged like the hemicube values are.
+fn exact_and_bound_at_hemicube_points(c: &Case, res: u32) -> (f64, f64) {
+    let a2 = vecs(&c.a2);
+    let occluders: Vec<Vec<DVec3>> = c.occluders.iter().map(|o| vecs(o)).collect();
+    let mut polygons: Vec<&[DVec3]> = vec![&a2];
+    polygons.extend(occluders.iter().map(|o| o.as_slice()));
+    let exact_at = |p: DVec3, n: DVec3| {
+        if occluders.is_empty() {
+            contour::point_to_polygon(p, n, &a2)
+        } else {
+            exact::point_to_visible_polygon(p, n, &a2, &occluders)
+        }
+    };
+    match (c.point, c.point_normal) {
+        (Some(p), Some(n)) => {
+            let (p, n) = (
+                DVec3::from_array(p),
+                DVec3::from_array(n).normalize_or_zero(),
+            );
+            (exact_at(p, n), hemicube_bound(res, p, &polygons))
+        }
+        _ => {
+            let a1 = vecs(&c.a1);
+            let value = cases::integrate_fixed(&a1, &mut |p, n| exact_at(p, n));
+            let bound = cases::integrate_fixed(&a1, &mut |p, _| hemicube_bound(res, p, &polygons));
+            (value, bound)
+        }
     }
 }
 
 #[test]
-fn hemicube_is_within_its_boundary_pixel_bound_and_improves_with_resolution() {
+fn hemicube_is_within_its_pixel_bound_which_shrinks_with_resolution() {
     let cat = catalogue();
-    for c in cat
-        .iter()
-        .filter(|c| !c.name.contains("far") && !c.name.contains("h100"))
-    {
+    let (mut coarse, mut fine) = (0.0, 0.0);
+    for c in cat.iter().filter(|c| !is_disk(c)) {
         let reference = c.exact.expect("exact");
-        let mut errors = Vec::new();
         for res in [32, 128] {
             let params = FormFactorParams {
                 hemicube_res: res,
@@ -192,42 +277,107 @@ fn hemicube_is_within_its_boundary_pixel_bound_and_improves_with_resolution() {
                 ..Default::default()
             };
             let value = cases::evaluate(c, FormFactorMethod::Hemicube, &params);
-            // Pixel side Δ = 2/res; each pixel's delta ≤ Δ²/π; the boundary of A2 crosses at most
-            // about 2π/Δ pixel columns per face pair (a projected perimeter ≤ 2π), so
-            // |error| ≤ 2πΔ/π·2 = 4Δ plus the 6×6 Gauss rule's error over A1.
-            let delta = 2.0 / res as f64;
-            let tol = 4.0 * delta;
-            let err = (value - reference).abs();
+            let (at_points, bound) = exact_and_bound_at_hemicube_points(c, res);
+            let err = (value - at_points).abs();
             eprintln!(
-                "{:32} res {res}: {value:.6} ref {reference:.6} err {err:.2e} tol {tol:.2e}",
+                "{:32} res {res:3}: {value:.6} exact at its points {at_points:.6} (ref \
+                 {reference:.6}) err {err:.2e} bound {bound:.2e}",
                 c.name
             );
-            assert!(err <= tol, "{} at {res}: {err} > {tol}", c.name);
-            errors.push(err);
+            assert!(err <= bound, "{} at {res}: {err} > {bound}", c.name);
+            if res == 32 {
+                coarse += err;
+            } else {
+                fine += err;
+            }
         }
     }
+    // The bound is O(Δ): 4× smaller at 128 than at 32. The errors themselves (signed pixel
+    // misses that partly cancel) fall at least as fast on the whole; 2× is asked.
+    eprintln!("Σ|error|: res 32 {coarse:.3e}, res 128 {fine:.3e}");
+    assert!(fine <= coarse / 2.0, "{coarse} -> {fine}");
+}
+
+/// The hybrid rule of `formfactor::hybrid`'s documentation, from a case's centroids:
+/// contour when A2's centroid is within `k √(max(A1, A2)/π)` of A1's, faces away, or is
+/// expected to cover fewer than `min_pixels` pixels (`A2 cosθ2 / r²` over a top-face
+/// pixel's solid angle Δ²); the hemicube otherwise.
+fn hybrid_picks_contour(c: &Case, params: &FormFactorParams) -> bool {
+    let a2 = vecs(&c.a2);
+    let (c1, area1) = match c.point {
+        Some(p) => (DVec3::from_array(p), 0.0),
+        None => (polygon::centroid(&vecs(&c.a1)), polygon::area(&vecs(&c.a1))),
+    };
+    let (c2, n2, area2) = (
+        polygon::centroid(&a2),
+        polygon::normal(&a2).expect("normal"),
+        polygon::area(&a2),
+    );
+    let d = c1 - c2;
+    let r = d.length();
+    let radius = (area1.max(area2) / PI).sqrt();
+    let cos = n2.dot(d) / r;
+    let pixel = (2.0 / params.hemicube_res as f64).powi(2);
+    r < params.hybrid_k * radius
+        || cos <= 0.0
+        || area2 * cos / (r * r) / pixel < params.hybrid_min_pixels
 }
 
 #[test]
-fn hybrid_is_never_worse_than_the_better_of_its_parts_on_the_reference_cases() {
-    let params = FormFactorParams {
-        hemicube_res: 64,
-        ..Default::default()
-    };
-    for c in catalogue() {
-        let reference = c.exact.expect("exact");
-        let err = |m| (cases::evaluate(&c, m, &params) - reference).abs();
-        let (h, cube, contour) = (
-            err(FormFactorMethod::Hybrid),
-            err(FormFactorMethod::Hemicube),
-            err(FormFactorMethod::Contour),
-        );
-        eprintln!(
-            "{:32} hybrid {h:.2e} hemicube {cube:.2e} contour {contour:.2e}",
-            c.name
-        );
-        assert!(h <= cube.min(contour), "{}", c.name);
+fn hybrid_gives_the_value_of_the_method_its_rule_names() {
+    let (mut by_contour, mut by_hemicube) = (0, 0);
+    // The default k = 5 sends every catalogue case but the far ones to contour; k = 0.5
+    // lets the hemicube have the unit squares at distance 1.
+    for k in [5.0, 0.5] {
+        let params = FormFactorParams {
+            hemicube_res: 64,
+            hybrid_k: k,
+            ..Default::default()
+        };
+        for c in catalogue() {
+            let h = cases::evaluate(&c, FormFactorMethod::Hybrid, &params);
+            let contour = hybrid_picks_contour(&c, &params);
+            let m = if contour {
+                by_contour += 1;
+                FormFactorMethod::Contour
+            } else {
+                by_hemicube += 1;
+                FormFactorMethod::Hemicube
+            };
+            let expected = cases::evaluate(&c, m, &params);
+            eprintln!("k {k}: {:32} hybrid {h:.9} = {m} {expected:.9}", c.name);
+            assert_eq!(
+                h.to_bits(),
+                expected.to_bits(),
+                "k {k}: {}: not {m}",
+                c.name
+            );
+        }
     }
+    eprintln!("{by_contour} contour, {by_hemicube} hemicube");
+    assert!(by_contour > 0 && by_hemicube > 0);
+}
+
+/// `exact` (and `contour`, which clips few blockers the same way) integrate the exact
+/// point value over A1 by adaptive cubature to `cubature_depth` levels. Along the penumbra
+/// kinks the point value is only continuous, and the error does not fall by a fixed factor
+/// per level (measured at depths 3–7 on these cases: 1.7e-6, 3.5e-8, 1.1e-7, 2.2e-9, 6.7e-9
+/// on `centred_small_blocker`), so no per-level rate gives a bound. The a-posteriori estimate
+/// used instead: the distance to the refinement two levels (16× the cells along a kink)
+/// finer, doubled — the error at depth d is at most |v(d) − v(d+2)| + err(d+2), and the
+/// finer level is taken to be at least as good — plus rounding.
+fn cubature_tolerance(c: &Case, method: FormFactorMethod, params: &FormFactorParams) -> f64 {
+    if c.point.is_some() {
+        return 1e-12; // One exact point value: rounding only.
+    }
+    let at = |d: u32| {
+        let p = FormFactorParams {
+            cubature_depth: d,
+            ..params.clone()
+        };
+        cases::evaluate(c, method, &p)
+    };
+    2.0 * (at(params.cubature_depth) - at(params.cubature_depth + 2)).abs() + 1e-12
 }
 
 #[test]
@@ -238,132 +388,229 @@ fn every_method_honours_occluders() {
         .into_iter()
         .find(|c| c.name == "parallel_unit_squares_c1")
         .expect("unit squares");
-    let half = unit.exact.expect("exact") / 2.0;
+    let n = 2048;
+    let params = FormFactorParams {
+        rays: n,
+        visibility_rays: 64,
+        hemicube_res: 256,
+        seed: 9,
+        ..Default::default()
+    };
+    let mut failures = Vec::new();
     for c in &occluded {
         let reference = c.exact.expect("reference value");
         if c.name == "half_blocker_parallel_unit_squares" {
-            // The stored reference agrees with the symmetry argument.
-            assert!(
-                (reference - half).abs() < 1e-6 * half,
-                "{reference} vs {half}"
-            );
+            // The independent reference is half the catalogue's unit squares (symmetry).
+            let half = unit.exact.expect("exact") / 2.0;
+            assert!((reference - half).abs() < 1e-15, "{reference} vs {half}");
         }
-        let n = 2048;
+        // Every case hides a good part of A2: a method that ignored the occluders would be
+        // off by the difference, far beyond every tolerance below.
+        let unblocked = Case {
+            occluders: Vec::new(),
+            ..c.clone()
+        };
+        let unblocked = cases::evaluate(&unblocked, FormFactorMethod::Exact, &params);
+        eprintln!("{:36} unoccluded {unblocked:.6}", c.name);
+        let exact_tol = cubature_tolerance(c, FormFactorMethod::Exact, &params);
+        // With few blockers contour integrates the same point values to the same depth:
+        // where its value is exact's to the bit, so is its error estimate.
+        let same = cases::evaluate(c, FormFactorMethod::Contour, &params).to_bits()
+            == cases::evaluate(c, FormFactorMethod::Exact, &params).to_bits();
+        let contour_tol = if same {
+            exact_tol
+        } else {
+            cubature_tolerance(c, FormFactorMethod::Contour, &params)
+        };
         for m in FormFactorMethod::ALL {
             if *m == FormFactorMethod::Montecarlo && c.name.contains("shared_edge") {
                 // Touching polygons: the kernel's variance is unbounded (documented).
                 continue;
             }
-            let params = FormFactorParams {
-                rays: n,
-                visibility_rays: 64,
-                hemicube_res: 64,
-                seed: 9,
-                ..Default::default()
-            };
             let value = cases::evaluate(c, *m, &params);
-            let tol = match m {
-                // Cubature depth 5 on an integrand with kinks (measured ≤ 1e-5 here).
-                FormFactorMethod::Exact => 1e-4 * reference.max(1e-3),
-                // With a few blockers, contour subtracts their shadows exactly (as exact
-                // does) and integrates at the same cubature depth: the same tolerance.
-                FormFactorMethod::Contour | FormFactorMethod::Hybrid => 1e-4 * reference.max(1e-3),
-                FormFactorMethod::Raycast => 4.0 * sigma_hits(reference, n) + 1e-3,
-                FormFactorMethod::Montecarlo => 0.1 * reference.max(0.01),
-                // 64 pixels across: 4Δ as above (without a rasteriser, `evaluate` draws the
-                // gpu-hemicube on the CPU; the GPU one is tested in tests/gpu_hemicube.rs).
-                FormFactorMethod::Hemicube | FormFactorMethod::GpuHemicube => 4.0 * 2.0 / 64.0,
+            let (target, tol) = match m {
+                FormFactorMethod::Exact => (reference, exact_tol),
+                FormFactorMethod::Contour => (reference, contour_tol),
+                FormFactorMethod::Hybrid if hybrid_picks_contour(c, &params) => {
+                    (reference, contour_tol)
+                }
+                // The hemicube against the exact values at its own points, within its pixel
+                // bound (the 6×6 rule's own error is the printed target − ref).
+                FormFactorMethod::Hybrid
+                | FormFactorMethod::Hemicube
+                | FormFactorMethod::GpuHemicube => {
+                    exact_and_bound_at_hemicube_points(c, params.hemicube_res)
+                }
+                // A hit fraction of n rays: 4 binomial standard errors, plus one ray.
+                FormFactorMethod::Raycast => {
+                    (reference, 4.0 * sigma_hits(reference, n) + 1.0 / n as f64)
+                }
+                FormFactorMethod::Montecarlo => {
+                    // 4 standard deviations of the n-pair estimate, measured over 16 seeds
+                    // about their own mean (and that mean unbiased to 4 σ/√16).
+                    let (mean, sigma) = seed_spread_with(c, *m, &params, 16);
+                    if (mean - reference).abs() > sigma {
+                        failures.push(format!(
+                            "{} {m}: 16-seed mean {mean} vs {reference} (σ {sigma:.2e})",
+                            c.name
+                        ));
+                    }
+                    (reference, 4.0 * sigma)
+                }
             };
-            let err = (value - reference).abs();
+            let err = (value - target).abs();
             eprintln!(
-                "{:36} {m:10} {value:.6} ref {reference:.6} err {err:.2e} tol {tol:.1e}",
+                "{:36} {m:12} {value:.6} vs {target:.6} (ref {reference:.6}) err {err:.2e} tol {tol:.1e}",
                 c.name
             );
-            assert!(err <= tol, "{} {m}: {err} > {tol}", c.name);
-            if reference == 0.0 {
-                assert!(value.abs() <= 1e-12, "{} {m}: fully blocked", c.name);
+            if err > tol {
+                failures.push(format!(
+                    "{} {m}: {value} vs {target}: {err:.2e} > {tol:.2e}",
+                    c.name
+                ));
+            }
+            // The tolerance sees the occluders: ignoring them would fail.
+            if (unblocked - reference).abs() <= tol + (target - reference).abs() {
+                failures.push(format!(
+                    "{} {m}: tolerance {tol:.2e} cannot tell the occluders",
+                    c.name
+                ));
+            }
+            if reference == 0.0 && value.abs() > 1e-12 {
+                failures.push(format!("{} {m}: {value} where all is blocked", c.name));
             }
         }
     }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
-fn cornell(method: FormFactorMethod) -> ProgressiveSolver {
+/// A Cornell-box solution with 60 mm elements, `patch` mm shooting patches, to 0.1 % unshot.
+fn cornell(method: FormFactorMethod, patch: f64, seed: u64) -> ProgressiveSolver {
     let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
     let config = SolverConfig {
         element_size: Some(60.0),
-        patch_size: Some(120.0),
+        patch_size: Some(patch),
         method,
-        formfactor: with(FormFactorParams {
+        formfactor: FormFactorParams {
             rays: 20_000,
             hemicube_res: 128,
+            seed,
             ..Default::default()
-        }),
+        },
         ..Default::default()
     };
-    ProgressiveSolver::new(scene, config).expect("solver")
+    let mut s = ProgressiveSolver::new(scene, config).expect("solver");
+    let t = std::time::Instant::now();
+    let stop = StopCriteria {
+        unshot: 1e-3,
+        ..Default::default()
+    };
+    s.run(&stop, &AtomicBool::new(false), &mut |_| {});
+    assert!(s.unshot_fraction() <= 1e-3);
+    eprintln!(
+        "{method} (patches {patch} mm, seed {seed}): {} shots in {:.1} s",
+        s.shots(),
+        t.elapsed().as_secs_f64()
+    );
+    s
 }
 
-/// Area-weighted relative RMS difference of two element radiance lists.
+/// Area-weighted relative RMS difference of two solutions' element radiance, over the
+/// elements that do not emit (the light's emission, identical in both and far brighter than
+/// the walls, would otherwise dilute every difference in the reflected light).
 fn rel_rms(a: &ProgressiveSolver, b: &ProgressiveSolver) -> f64 {
     let (mut num, mut den) = (0.0, 0.0);
     let (ra, rb) = (a.element_radiance(false), b.element_radiance(false));
-    for ((x, y), e) in ra.iter().zip(&rb).zip(&a.mesh().elements) {
+    let (scene, mesh) = (a.scene(), a.mesh());
+    for ((x, y), e) in ra.iter().zip(&rb).zip(&mesh.elements) {
+        let material = mesh.patches[e.patch.0 as usize].material;
+        if scene.materials[material.0 as usize].is_emitter() {
+            continue;
+        }
         num += e.area * (*x - *y).length_squared();
         den += e.area * y.length_squared();
     }
     (num / den).sqrt()
 }
 
+/// The sampling methods estimate the same area-to-area form factors with true visibility
+/// (raycast from the shooter, montecarlo by point pairs; reciprocal), so their solutions
+/// differ by noise alone: the squared RMS difference of two independent noisy solutions is
+/// the sum of their noise variances, each measured from a second seed (σ = RMS(seed 1 −
+/// seed 2)/√2). Allowed: twice that sum — a bias of one σ already fails.
 #[test]
-fn every_method_drives_the_solver_to_the_contour_solution() {
-    let never = AtomicBool::new(false);
-    let stop = StopCriteria {
-        unshot: 1e-3,
-        ..Default::default()
-    };
-    let mut reference = cornell(FormFactorMethod::Contour);
-    reference.run(&stop, &never, &mut |_| {});
-    for m in FormFactorMethod::ALL {
-        if *m == FormFactorMethod::GpuHemicube {
-            continue; // Needs a GPU: tests/gpu_hemicube.rs.
-        }
-        let mut s = cornell(*m);
-        let t = std::time::Instant::now();
-        s.run(&stop, &never, &mut |_| {});
-        eprintln!("{m}: {:.1} s", t.elapsed().as_secs_f64());
-        let d = rel_rms(&s, &reference);
-        // Stated tolerances (element-wise, 60 mm elements, 120 mm patches): exact differs
-        // from contour by the centroid rule over 60 mm elements; the hemicube by its point
-        // approximation and aliasing at 128 pixels; raycast by 20 000 rays per shot of noise.
-        let tol = match m {
-            FormFactorMethod::Contour => 0.0,
-            // Measured: exact 0.13 %, hybrid 0.03 %, hemicube 0.9 %, raycast 0.8 %,
-            // montecarlo 0.9 %; the tolerances leave about 3× room.
-            FormFactorMethod::Exact => 0.005,
-            FormFactorMethod::Hybrid => 0.005,
-            FormFactorMethod::Hemicube => 0.03,
-            FormFactorMethod::Raycast => 0.03,
-            FormFactorMethod::Montecarlo => 0.03,
-            FormFactorMethod::GpuHemicube => unreachable!("skipped above"),
-        };
+fn raycast_and_montecarlo_drive_the_solver_to_the_same_solution_up_to_their_noise() {
+    let r = cornell(FormFactorMethod::Raycast, 120.0, 1);
+    let m = cornell(FormFactorMethod::Montecarlo, 120.0, 1);
+    let sigma_r = rel_rms(&r, &cornell(FormFactorMethod::Raycast, 120.0, 2)) / SQRT_2;
+    let sigma_m = rel_rms(&m, &cornell(FormFactorMethod::Montecarlo, 120.0, 2)) / SQRT_2;
+    let d = rel_rms(&r, &m);
+    let noise = (sigma_r.powi(2) + sigma_m.powi(2)).sqrt();
+    let c = cornell(FormFactorMethod::Contour, 120.0, 1);
+    eprintln!(
+        "element RMS: raycast noise {sigma_r:.4}, montecarlo noise {sigma_m:.4}, raycast vs \
+         montecarlo {d:.4} = {:.2} × their combined noise; vs contour: raycast {:.4}, \
+         montecarlo {:.4}",
+        d / noise,
+        rel_rms(&r, &c),
+        rel_rms(&m, &c)
+    );
+    assert!(sigma_r > 0.0 && sigma_m > 0.0);
+    assert!(d * d <= 2.0 * noise * noise, "{d} vs noise {noise}");
+}
+
+/// The deterministic methods against the contour solution. Their differences from it come
+/// from the shooter's discretisation: the hemicube sees the shooting patch as a point at its
+/// centroid, exact and contour treat its visibility differently, and the hybrid takes the
+/// contour rows wherever a receiver is near. Those errors are O(1) relatively only for
+/// receivers within a few patch sizes H of the shooter, whose share of the area falls ∝ H:
+/// the element RMS difference falls at least like √H, so halving the patches must cut it by
+/// √2 or more. (The contour solution with another seed differs by its visibility noise,
+/// printed.) The hybrid, which replaces the hemicube's rows by contour rows where the point
+/// approximation is worst, is no further from contour than the hemicube is.
+#[test]
+fn exact_hemicube_and_hybrid_approach_the_contour_solution_as_the_patches_shrink() {
+    let mut d = std::collections::BTreeMap::new();
+    for patch in [120.0, 60.0] {
+        let reference = cornell(FormFactorMethod::Contour, patch, 1);
         eprintln!(
-            "{m:10}: {} shots, element RMS vs contour {d:.4} (tol {tol})",
-            s.shots()
+            "patches {patch} mm: contour with another seed {:.4}",
+            rel_rms(&cornell(FormFactorMethod::Contour, patch, 2), &reference)
         );
-        assert!(d <= tol, "{m}: {d} > {tol}");
-        assert!(s.unshot_fraction() <= 1e-3);
+        for m in [
+            FormFactorMethod::Exact,
+            FormFactorMethod::Hemicube,
+            FormFactorMethod::Hybrid,
+        ] {
+            let v = rel_rms(&cornell(m, patch, 1), &reference);
+            eprintln!("patches {patch} mm: {m} vs contour {v:.4}");
+            d.insert((m.name(), patch as u32), v);
+        }
     }
+    let mut failures = Vec::new();
+    for m in ["exact", "hemicube"] {
+        let (coarse, fine) = (d[&(m, 120)], d[&(m, 60)]);
+        if fine * SQRT_2 > coarse {
+            failures.push(format!("{m}: {coarse:.4} -> {fine:.4}, not √2 closer"));
+        }
+    }
+    for patch in [120, 60] {
+        let (h, cube) = (d[&("hybrid", patch)], d[&("hemicube", patch)]);
+        if h > cube {
+            failures.push(format!(
+                "patches {patch}: hybrid {h:.4} > hemicube {cube:.4}"
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
 #[test]
 fn the_cli_takes_every_method_and_its_parameters() {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/formfactors.json");
     for m in FormFactorMethod::ALL {
-        if *m == FormFactorMethod::GpuHemicube
-            && std::env::var_os("CI").is_none()
-            && nusselt::gpu::GpuHemicube::new().is_err()
-        {
-            eprintln!("gpu-hemicube skipped: no GPU adapter (CI installs lavapipe)");
+        // Without an adapter the CLI fails for gpu-hemicube: skip it here, or fail in CI.
+        if *m == FormFactorMethod::GpuHemicube && common::gpu_hemicube().is_none() {
             continue;
         }
         let out = std::process::Command::new(env!("CARGO_BIN_EXE_nusselt"))
@@ -387,11 +634,29 @@ fn the_cli_takes_every_method_and_its_parameters() {
             String::from_utf8_lossy(&out.stderr)
         );
         let lines = json_lines(out.stdout);
-        assert_eq!(lines.len(), catalogue().len());
-        for l in &lines {
+        let cat = catalogue();
+        assert_eq!(lines.len(), cat.len());
+        // The parameters reach the method: each line is the library's value for them (a
+        // dropped --rays, --seed or --hemicube-res changes it), up to the order of float sums
+        // (1e-12). The GPU rasterises in f32: tests/gpu_hemicube.rs compares it.
+        let params = FormFactorParams {
+            hemicube_res: 16,
+            rays: 64,
+            seed: 4,
+            ..Default::default()
+        };
+        for (l, c) in lines.iter().zip(&cat) {
             assert_eq!(l["method"], m.name());
             let v = l["value"].as_f64().expect("value");
             assert!((0.0..=1.0).contains(&v), "{m}: {v}");
+            if *m != FormFactorMethod::GpuHemicube {
+                let expected = cases::evaluate(c, *m, &params);
+                assert!(
+                    (v - expected).abs() <= 1e-12 * expected.abs(),
+                    "{m} {}: cli {v} vs library {expected}",
+                    c.name
+                );
+            }
         }
     }
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_nusselt"))

@@ -1,7 +1,7 @@
 //! The GPU hemicube (wgpu; lavapipe on machines without a GPU) against the CPU hemicube.
 //!
-//! Skipped when no adapter can be opened, unless `CI` is set: CI installs lavapipe, so there
-//! a missing adapter is a failure.
+//! Without an adapter these tests print why and skip, except in CI (`common::in_ci`), where
+//! `.ci/run` installs lavapipe and a missing adapter is a failure.
 
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -17,17 +17,26 @@ use nusselt::mesh::PatchId;
 use nusselt::scene::{LoadOptions, Scene};
 use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 
+mod common;
+
 fn gpu() -> Option<GpuHemicube> {
-    match GpuHemicube::new() {
-        Ok(g) => {
-            eprintln!("adapter: {}", g.adapter());
-            Some(g)
-        }
-        Err(e) if std::env::var_os("CI").is_none() => {
-            eprintln!("skipped: {e}");
-            None
-        }
-        Err(e) => panic!("CI has lavapipe, yet: {e}"),
+    common::gpu_hemicube()
+}
+
+/// The one rule for `CI` (tests/common): any value but empty, `false` or `0`.
+#[test]
+fn ci_is_any_value_but_empty_false_or_0() {
+    for (v, ci) in [
+        (None, false),
+        (Some(""), false),
+        (Some("false"), false),
+        (Some("FALSE"), false),
+        (Some("0"), false),
+        (Some("true"), true),
+        (Some("1"), true),
+        (Some("yes"), true),
+    ] {
+        assert_eq!(common::ci_value(v), ci, "CI={v:?}");
     }
 }
 
@@ -151,15 +160,32 @@ fn gpu_honours_occluders_like_the_cpu() {
     let on_gpu = gpu
         .form_factors(7, &polygons, &view, &table, &[0, NONE], 1)
         .expect("gpu")[0];
-    eprintln!("cpu {cpu:.9} gpu {on_gpu:.9}");
-    assert!(cpu > 0.1 && cpu < 0.5, "{cpu}");
+    // The exact values (Lambert on the seen part), and the hemicube's pixel bound for them.
+    let exact = nusselt::formfactor::exact::point_to_visible_polygon(
+        origin,
+        normal,
+        &square,
+        std::slice::from_ref(&blocker),
+    );
+    let unblocked = nusselt::formfactor::contour::point_to_polygon(origin, normal, &square);
+    let bound = common::hemicube_bound(256, origin, &[&square, &blocker]);
+    eprintln!(
+        "cpu {cpu:.9} gpu {on_gpu:.9} exact {exact:.9} (bound {bound:.1e}), unblocked {unblocked:.9}"
+    );
+    // The blocker hides more than the bound can blur, and the CPU hemicube sees that.
+    assert!(unblocked - exact > 2.0 * bound, "{unblocked} vs {exact}");
+    assert!((cpu - exact).abs() <= bound, "{cpu} vs exact {exact}");
     assert!((cpu - on_gpu).abs() <= 1e-3 * cpu, "{cpu} vs {on_gpu}");
     // Without the blocker the square is seen whole; the GPU keeps up with the change of key.
     let alone = || vec![square.clone()];
     let whole = gpu
         .form_factors(8, &alone, &view, &table, &[0], 1)
         .expect("gpu")[0];
-    assert!(whole > 1.5 * on_gpu, "{whole} vs {on_gpu}");
+    let bound = common::hemicube_bound(256, origin, &[&square]);
+    assert!(
+        (whole - unblocked).abs() <= bound,
+        "{whole} vs exact {unblocked}"
+    );
 }
 
 /// `gpu-hemicube` through the solver converges to what the CPU hemicube converges to, and

@@ -181,10 +181,7 @@ fn render_reports_its_error_against_a_reference() {
     );
     let json: serde_json::Value = serde_json::from_str(out.trim()).expect("json");
     let error = json["error"].as_f64().expect("error is reported");
-    // A coarse solution against a noisy 64-spp reference: clearly close, clearly not equal.
-    assert!(error > 0.001 && error < 0.5, "error {error}");
-    // `compare` uses the same mask: it reproduces the render's figure, and 0 for itself.
-    let compare = |image: &str| {
+    let compare = |image: &str, reference: &str| {
         let out = nusselt(&[
             "compare",
             "--builtin",
@@ -192,11 +189,51 @@ fn render_reports_its_error_against_a_reference() {
             "--image",
             image,
             "--reference",
-            &p("ref.pfm"),
+            reference,
         ]);
         let v: serde_json::Value = serde_json::from_str(out.trim()).expect("json");
         v["error"].as_f64().expect("error")
     };
-    assert!((compare(&p("r.pfm")) - error).abs() < 1e-6 * error);
-    assert_eq!(compare(&p("ref.pfm")), 0.0);
+    // `compare` uses the same mask: it reproduces the render's figure, and 0 for itself.
+    assert!((compare(&p("r.pfm"), &p("ref.pfm")) - error).abs() < 1e-6 * error);
+    assert_eq!(compare(&p("ref.pfm"), &p("ref.pfm")), 0.0);
+    // The metric is the relative RMS √(Σ‖I − R‖²/Σ‖R‖²): the reference halved (exact in
+    // binary, so the PFM holds it exactly) is 0.5 off whatever pixels the mask keeps.
+    let mut scaled = Image::load_pfm(Path::new(&p("ref.pfm"))).expect("reference");
+    for px in &mut scaled.pixels {
+        *px *= 0.5;
+    }
+    scaled
+        .save(Path::new(&p("scaled.pfm")), 1.0)
+        .expect("write");
+    let e = compare(&p("scaled.pfm"), &p("ref.pfm"));
+    assert!((e - 0.5).abs() < 1e-12, "halved: {e}");
+    // Lower bound from the reference's own noise. A second 64-spp reference (another seed)
+    // differs from the first by √2 σ (σ: one reference's relative noise). The render does
+    // not share the reference's noise, so its error is √(bias² + σ² + its own noise) ≥ σ in
+    // expectation; over the ~500 masked pixels that estimate of σ² scatters by about
+    // √(2/500) ≈ 6 %, so 0.8 σ is 3 of those below.
+    nusselt(
+        &[
+            &["reference"][..],
+            &common[..],
+            &[
+                "--spp",
+                "64",
+                "--seed",
+                "2",
+                "--out",
+                &p("ref2.pfm"),
+                "--quiet",
+            ],
+        ]
+        .concat(),
+    );
+    let sigma = compare(&p("ref2.pfm"), &p("ref.pfm")) / 2f64.sqrt();
+    eprintln!("render error {error:.4}; one 64-spp reference's noise {sigma:.4}");
+    assert!(sigma > 0.0);
+    assert!(
+        error >= 0.8 * sigma,
+        "error {error} below the reference's noise {sigma}"
+    );
 }

@@ -3,21 +3,14 @@
 //! checked: red on the left, green on the right, brighter after 200 shots than after 1.
 //!
 //! Skips with a printed reason where there is no Xvfb or no Vulkan driver, except in CI
-//! (`CI=true`), where that is a failure.
+//! (`common::in_ci`), where that is a failure.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-fn in_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| !v.is_empty() && v != "false" && v != "0")
-}
-
-/// Skips (prints why) or, in CI, fails.
-fn skip(reason: &str) {
-    assert!(!in_ci(), "CI must run the viewer test, but: {reason}");
-    eprintln!("SKIPPED: {reason}");
-}
+mod common;
+use common::skip;
 
 fn which(program: &str) -> Option<PathBuf> {
     std::env::var_os("PATH").and_then(|paths| {

@@ -56,7 +56,25 @@ pub struct SceneArgs {
     pub rho: Option<f64>,
 }
 
+/// The text of a caught panic's payload.
+pub(crate) fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {
+    panic
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown panic".into())
+}
+
 impl SceneArgs {
+    /// The scene as the user named it (for messages).
+    pub fn describe(&self) -> String {
+        match (&self.scene, &self.builtin) {
+            (Some(p), _) => p.display().to_string(),
+            (None, Some(b)) => format!("--builtin {b}"),
+            (None, None) => "no scene".into(),
+        }
+    }
+
     pub fn load(&self) -> Result<Scene> {
         let opts = LoadOptions {
             two_sided: self.two_sided,
@@ -139,7 +157,7 @@ impl ViewArgs {
         check_count("--spp", self.spp, MAX_SPP)?;
         let camera = match &self.camera {
             Some(text) => crate::scene::Camera::parse(text).context("--camera")?,
-            None => scene.default_camera(),
+            None => crate::render::view::default_camera(scene),
         };
         Ok(crate::render::RenderSettings {
             width: self.width,

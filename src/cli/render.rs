@@ -25,12 +25,16 @@ pub struct RenderArgs {
     /// Output image: .pfm, .exr (linear) or .png (exposure + sRGB).
     #[arg(long)]
     pub out: PathBuf,
-    /// Element edge length in scene units (default: 1/80 of the scene's diagonal).
+    /// Element edge length in scene units (default: from the --max-elements budget).
     #[arg(long, allow_negative_numbers = true)]
     pub element_size: Option<f64>,
-    /// Patch (shooter) edge length in scene units (default: 1/24 of the scene's diagonal).
+    /// Patch (shooter) edge length in scene units (default: 10/3 element sizes).
     #[arg(long, allow_negative_numbers = true)]
     pub patch_size: Option<f64>,
+    /// Element budget that sets the default element size (default 20000; faces smaller
+    /// than an element count as one). Ignored with --element-size.
+    #[arg(long)]
+    pub max_elements: Option<usize>,
     /// Cast every shadow ray for every shooter (no 4-ray probe for non-emitters).
     #[arg(long)]
     pub full_visibility: bool,
@@ -189,7 +193,21 @@ fn check_image_out(out: &std::path::Path) -> Result<()> {
     check_output("--out", out)
 }
 
+/// `nusselt render`. A panic anywhere in loading, meshing, solving or rendering (a bug:
+/// nothing should panic) becomes an error naming the scene instead of an abort.
 pub fn run_render(args: &RenderArgs) -> Result<()> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| render(args))).unwrap_or_else(
+        |panic| {
+            Err(anyhow!(
+                "internal error while solving {}: {} (please report it with the model)",
+                args.scene.describe(),
+                super::panic_message(&panic)
+            ))
+        },
+    )
+}
+
+fn render(args: &RenderArgs) -> Result<()> {
     let process_start = Instant::now();
     // Every flag first: a typo must not cost a scene load or a solve.
     check_image_out(&args.out)?;
@@ -215,6 +233,9 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
     }
     let method = parse_method("--formfactor", &args.formfactor)?;
     check_count("--rays", args.rays, MAX_RAYS)?;
+    if args.max_elements == Some(0) {
+        bail!("--max-elements must be at least 1");
+    }
     args.method_args.check()?;
     let scene = args.scene.load()?;
     let settings = args.view.settings(&scene, args.seed)?;
@@ -234,12 +255,26 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
             ..args.method_args.params()
         },
         patch_size: args.patch_size,
+        max_elements: args.max_elements,
         raster: raster_for(method)?,
         ..Default::default()
     };
     let adapter = config.raster.as_ref().map(|r| r.describe());
     let solve_start = Instant::now();
     let mut solver = ProgressiveSolver::new(scene, config)?;
+    if !args.quiet && !args.json {
+        let m = solver.mesh();
+        eprintln!(
+            "meshed {} faces: {} elements (size {:.4}), {} patches (size {:.4}; {} surfaces merged, {} clusters)",
+            solver.scene().faces.len(),
+            m.elements.len(),
+            m.element_size,
+            m.patches.len(),
+            m.patch_size,
+            m.surface_count,
+            m.cluster_count
+        );
+    }
     let stop = StopCriteria {
         unshot: args.unshot,
         max_shots: args.shots,
@@ -326,6 +361,15 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
     }
     let summary = serde_json::json!({
         "elements": solver.mesh().elements.len(),
+        "patches": solver.mesh().patches.len(),
+        "faces": solver.scene().faces.len(),
+        "element_size": solver.mesh().element_size,
+        "patch_size": solver.mesh().patch_size,
+        "camera": [
+            settings.camera.eye.x, settings.camera.eye.y, settings.camera.eye.z,
+            settings.camera.target.x, settings.camera.target.y, settings.camera.target.z,
+            settings.camera.vfov_deg
+        ],
         "vertices": solver.mesh().vertices.len(),
         "shots": solver.shots(),
         "solve_seconds": solve_seconds,
@@ -408,9 +452,9 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
     let reference = Image::load_pfm(&args.reference)?;
     let camera = match &args.camera {
         Some(text) => crate::scene::Camera::parse(text).context("--camera")?,
-        None => scene.default_camera(),
+        None => crate::render::view::default_camera(&scene),
     };
-    let size = crate::mesh::default_patch_size(&scene);
+    let size = crate::mesh::default_patch_size(crate::mesh::default_element_size(&scene));
     let mesh = crate::mesh::Mesh::build_with(&scene, size, size)?;
     let bvh = render::display_bvh(&scene, &mesh);
     let zeros = vec![crate::scene::Rgb::ZERO; mesh.vertices.len()];

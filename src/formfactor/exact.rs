@@ -186,7 +186,7 @@ pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicB
                 slice.fill(0.0);
                 return;
             }
-            let ignore = [receiver.face as u32, patch.face as u32];
+            let ignore = [receiver.occluder, patch.occluder];
             let all_visible =
                 setup.probe && patch_pair_unblocked(ctx, receiver, patch, shooter, k, ignore);
             let first = receiver.elements.start as usize;
@@ -355,6 +355,7 @@ pub fn point_to_visible_polygon(
                     pieces.push(piece);
                     continue;
                 };
+
                 pieces.extend(subtract_convex(&piece, &shadow, sn));
             }
         }
@@ -439,11 +440,20 @@ fn subtract_convex(piece: &[DVec3], hole: &[DVec3], sn: DVec3) -> Vec<Vec<DVec3>
     let mut out = Vec::new();
     let mut rest = piece.to_vec();
     let k = hole.len();
+    let scale = (0..k)
+        .map(|i| (hole[(i + 1) % k] - hole[i]).length())
+        .fold(0.0, f64::max);
     for i in 0..k {
         if rest.len() < 3 {
             break;
         }
         let (a, b) = (hole[i], hole[(i + 1) % k]);
+        // A degenerate edge (repeated vertex, left by clipping) has no outward side: with
+        // a zero normal every point would count as outside and the hole itself would be
+        // kept as visible.
+        if (b - a).length() <= 1e-9 * scale {
+            continue;
+        }
         // Outward normal of the hole's edge, in the plane.
         let outward = (b - a).cross(sn);
         let outside = polygon::clip_to_halfspace(&rest, a, outward);
@@ -457,6 +467,49 @@ fn subtract_convex(piece: &[DVec3], hole: &[DVec3], sn: DVec3) -> Vec<Vec<DVec3>
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn a_point_inside_a_closed_box_sees_no_light() {
+        // Floor point under a box resting on the floor (the box's faces are the blockers):
+        // every ray to the light leaves through the box's top or sides.
+        let v = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+        let light = vec![
+            v(1.0 / 3.0, 1.0, 1.0 / 3.0),
+            v(2.0 / 3.0, 1.0, 1.0 / 3.0),
+            v(2.0 / 3.0, 1.0, 2.0 / 3.0),
+            v(1.0 / 3.0, 1.0, 2.0 / 3.0),
+        ];
+        let c = [
+            v(0.15, 0.0, 0.15),
+            v(0.45, 0.0, 0.15),
+            v(0.45, 0.3, 0.15),
+            v(0.15, 0.3, 0.15),
+            v(0.15, 0.0, 0.45),
+            v(0.45, 0.0, 0.45),
+            v(0.45, 0.3, 0.45),
+            v(0.15, 0.3, 0.45),
+        ];
+        let quads = [
+            [0, 1, 5, 4],
+            [3, 7, 6, 2],
+            [0, 3, 2, 1],
+            [4, 5, 6, 7],
+            [0, 4, 7, 3],
+            [1, 2, 6, 5],
+        ];
+        let mut tris = Vec::new();
+        for q in quads {
+            tris.push(vec![c[q[0]], c[q[1]], c[q[2]]]);
+            tris.push(vec![c[q[0]], c[q[2]], c[q[3]]]);
+        }
+        for (x, z) in [(0.425, 0.425), (0.3, 0.3), (0.175, 0.35), (0.44, 0.2)] {
+            let f = point_to_visible_polygon(v(x, 1e-6, z), DVec3::Y, &light, &tris);
+            assert!(f.abs() < 1e-9, "({x}, {z}): {f}");
+            // Top and sides alone must hide it too (the bottom is below the point).
+            let f = point_to_visible_polygon(v(x, 1e-6, z), DVec3::Y, &light, &tris[2..]);
+            assert!(f.abs() < 1e-9, "({x}, {z}) without the bottom: {f}");
+        }
+    }
     use super::*;
 
     fn square(z: f64, up: bool) -> Vec<DVec3> {

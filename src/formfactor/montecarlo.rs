@@ -100,7 +100,7 @@ pub fn row(ctx: &RowContext, shooter: PatchId, out: &mut [f32], cancel: &AtomicB
             return;
         }
         let receiver_patch = mesh.patch(e.patch);
-        let ignore = [receiver_patch.face as u32, patch.face as u32];
+        let ignore = [receiver_patch.occluder, patch.occluder];
         let sampler = PolygonSampler::new(e.corners());
         let mut rng = Rng::new(hash_seed(&[seed, shooter.0 as u64, j as u64, 0x3c4a]), 0);
         *f = estimate(

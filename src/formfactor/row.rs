@@ -103,23 +103,22 @@ pub(crate) fn contour_patch(
         poly.iter()
             .all(|v| (*v - of.centroid).dot(of.normal) <= 0.0)
     };
-    if k == shooter.0 as usize
-        || behind(&receiver.polygon, patch)
-        || behind(&patch.polygon, receiver)
+    if k == shooter.0 as usize || behind(&receiver.bounds, patch) || behind(&patch.bounds, receiver)
     {
         slice.fill(0.0);
         return;
     }
-    // BVH ids are input faces; a planar face cannot block rays between its points.
-    let ignore = [receiver.face as u32, patch.face as u32];
+    // BVH ids are visibility groups; a planar surface (or a small cluster of facets)
+    // cannot block rays between its own points.
+    let ignore = [receiver.occluder, patch.occluder];
     // Triangles in the pair's bounding box first; the hull only when there are some.
     let mut candidates = Vec::new();
-    let bbox = Shaft::bounding_box(&receiver.polygon, &patch.polygon, ctx.epsilon);
+    let bbox = Shaft::bounding_box(&receiver.bounds, &patch.bounds, ctx.epsilon);
     let culled = ctx
         .bvh
         .collect_in_shaft(&bbox, ignore, MAX_SHAFT_CANDIDATES, &mut candidates);
     if culled && !candidates.is_empty() {
-        let hull = Shaft::between(&receiver.polygon, &patch.polygon, ctx.epsilon);
+        let hull = Shaft::between(&receiver.bounds, &patch.bounds, ctx.epsilon);
         candidates.retain(|&t| !hull.excludes_triangle(ctx.bvh.stored_triangle(t)));
     }
     for (i, f) in slice.iter_mut().enumerate() {

@@ -215,7 +215,7 @@ pub(crate) fn patch_pair_unblocked(
             .iter()
             .all(|p| (*p - of.centroid).dot(of.normal) > 10.0 * eps)
     };
-    if !in_front(&shooter.polygon, receiver) || !in_front(&receiver.polygon, shooter) {
+    if !in_front(&shooter.bounds, receiver) || !in_front(&receiver.bounds, shooter) {
         return false;
     }
     let mut rng = Rng::new(

@@ -1,26 +1,35 @@
 //! Patches, elements and per-vertex radiance.
 //!
-//! Each input polygon becomes a patch (two, front and back, when the scene is two-sided);
-//! each patch is subdivided into elements of edge length about `element_size`: convex quads
-//! into a bilinear grid of quads, everything else into triangles (ear clipping), each
-//! triangle into a regular grid of smaller triangles. Patches shoot, elements receive
-//! (Cohen, Greenberg, Immel, Brock 1986, "An efficient radiosity approach for realistic image
-//! synthesis": substructuring).
+//! Input faces are first grouped ([`surfaces`]): edge-adjacent coplanar faces of one
+//! material whose outline is one convex polygon are meshed as that polygon, so a wall
+//! exported as two triangles gets no element boundary along its diagonal. Each such polygon
+//! (or large face) is split into *patches* (shooters, `patch_size`) and each patch into
+//! *elements* (receivers, `element_size`): convex quads into a bilinear grid, everything
+//! else into triangles whose count follows their area (a triangle smaller than an element
+//! stays whole; a sliver is bisected along its longest edge instead of cut into n² slivers).
+//! Faces smaller than half a patch are *clustered* into shooters of about one patch (across
+//! the facets of a curved surface too), each shooting through a planar proxy polygon of the
+//! cluster's area, so the number of shooters grows with the scene's area, not its triangle
+//! count (Cohen, Greenberg, Immel, Brock 1986, "An efficient radiosity approach for
+//! realistic image synthesis": substructuring). Known error of a cluster's proxy: of the
+//! order of the cluster's curvature times its size, like any patch's area-averaged
+//! radiance.
 //!
-//! Display vertices are shared only by elements on the same *surface* (same material,
-//! coplanar): radiance is averaged over those elements, never across a crease or a material
-//! change. Where a vertex of one patch lies inside an edge of a neighbouring patch's element
-//! (a T-vertex), its value is set to the interpolation along that edge so the shading has no
-//! cracks (Baum, Mann, Smith, Winget 1991).
+//! Default sizes come from an element budget ([`ELEMENT_BUDGET`]), not from the bounding
+//! box alone: a unit cube and a city block get about the same number of elements.
 
-use std::collections::HashMap;
+mod build;
+mod interpolate;
+pub mod surfaces;
+
 use std::ops::Range;
 
 use glam::DVec3;
 
+use crate::geometry::Aabb;
 use crate::geometry::bvh::TriangleInput;
-use crate::geometry::{Aabb, polygon};
-use crate::scene::{MaterialId, Rgb, Scene};
+use crate::geometry::polygon;
+use crate::scene::{MaterialId, Scene};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct PatchId(pub u32);
@@ -28,38 +37,124 @@ pub struct PatchId(pub u32);
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct ElementId(pub u32);
 
-/// Patch edge length in element sizes for [`Mesh::build`].
-pub const PATCH_ELEMENTS: f64 = 4.0;
-
-/// A default patch (shooter) size: 1/24 of the scene's diagonal (40 mm in the Cornell box).
-/// Patches shoot with their area-averaged unshot radiance, so a patch much larger than the
-/// scale on which radiance varies spreads light wrongly: whole-wall patches put the Cornell
-/// box 19 % off a path tracer, 96 mm patches 2.6 %, 40 mm patches 1.9 % (with 12 mm
+/// Patch edge length in element sizes (40 mm patches over 12 mm elements in the Cornell
+/// box). Patches shoot with their area-averaged unshot radiance, so a patch much larger than
+/// the scale on which radiance varies spreads light wrongly: whole-wall patches put the
+/// Cornell box 19 % off a path tracer, 96 mm patches 2.6 %, 40 mm patches 1.9 % (with 12 mm
 /// elements).
-pub fn default_patch_size(scene: &Scene) -> f64 {
-    let d = scene.bounds().diagonal();
-    if d > 0.0 { d / 24.0 } else { 1.0 }
-}
+pub const PATCH_ELEMENTS: f64 = 10.0 / 3.0;
+
+/// Elements the default element size aims at for the whole scene (both sides of a
+/// two-sided scene count). The Cornell box gets about 19,000 at 11.8 mm, within 2 % of a
+/// path tracer (README).
+pub const ELEMENT_BUDGET: usize = 20_000;
 
 /// Most elements a mesh may have (memory and time guard for a tiny `--element-size`).
 pub const MAX_ELEMENTS: usize = 4_000_000;
 
+/// A default element size: the edge length that gives about `budget` elements, counting a
+/// face smaller than one element as one (a scene of more faces than the budget gets one
+/// element per small face). Bisection on the estimate `Σ max(1, k A_f / s²)` per side
+/// (k = 1 for convex quads, 2 for triangles and other polygons).
+pub fn element_size_for_budget(scene: &Scene, budget: usize) -> f64 {
+    let sides = if scene.two_sided { 2.0 } else { 1.0 };
+    // Elements per s² of area: a convex quad is cut into squares of about s², anything
+    // else into triangles of at most s²/2 ([`build`]).
+    let areas: Vec<f64> = scene
+        .faces
+        .iter()
+        .map(|f| {
+            let per = if f.vertices.len() == 4 && polygon::is_convex(&f.vertices) {
+                1.0
+            } else {
+                2.0
+            };
+            per * polygon::area(&f.vertices)
+        })
+        .collect();
+    let total: f64 = areas.iter().sum();
+    let diag = scene.bounds().diagonal();
+    if !(total > 0.0 && total.is_finite() && diag > 0.0) {
+        return if diag > 0.0 { diag / 80.0 } else { 1.0 };
+    }
+    let budget = budget.max(1) as f64;
+    let count = |s: f64| -> f64 {
+        let s2 = s * s;
+        sides * areas.iter().map(|a| (a / s2).max(1.0)).sum::<f64>()
+    };
+    // count() falls as s grows; find the smallest s with count(s) <= budget.
+    let (mut lo, mut hi) = ((total / budget).sqrt() * 1e-3, diag);
+    if count(hi) > budget {
+        // More faces than the budget: one element per small face, the large ones cut to
+        // the size of an average face.
+        return (total / scene.faces.len() as f64).sqrt().max(1e-300);
+    }
+    for _ in 0..80 {
+        let mid = (lo * hi).sqrt();
+        if count(mid) > budget {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
+}
+
+/// Elements across the light sources' scale that the default mesh needs at most.
+pub const ELEMENTS_PER_LIGHT: f64 = 20.0;
+
+/// The default element size: [`element_size_for_budget`] with [`ELEMENT_BUDGET`], but no
+/// finer than 1/[`ELEMENTS_PER_LIGHT`] of the light sources' scale (the square root of their
+/// total area). Radiosity varies on the scale of the lights and of the distances between
+/// surfaces; where the light is large (a lit ceiling) the budget need not be spent: a unit
+/// cube lit by its whole ceiling gets 2,400 elements instead of 20,000. The Cornell box's
+/// small light leaves the budget in charge.
+pub fn default_element_size(scene: &Scene) -> f64 {
+    let emitting: f64 = scene
+        .faces
+        .iter()
+        .filter(|f| scene.materials[f.material.0 as usize].is_emitter())
+        .map(|f| polygon::area(&f.vertices))
+        .sum();
+    let light_floor = emitting.sqrt() / ELEMENTS_PER_LIGHT;
+    let budget = element_size_for_budget(scene, ELEMENT_BUDGET);
+    if light_floor.is_finite() {
+        budget.max(light_floor)
+    } else {
+        budget
+    }
+}
+
+/// The default patch size for an element size: [`PATCH_ELEMENTS`] elements across.
+pub fn default_patch_size(element_size: f64) -> f64 {
+    element_size * PATCH_ELEMENTS
+}
+
 #[derive(Clone, Debug)]
 pub struct Patch {
-    /// Index into `Scene::faces`.
+    /// Index into `Scene::faces` (the first face of a surface or cluster).
     pub face: usize,
-    /// Index of the input face in file order.
+    /// Index of that input face in file order.
     pub source_face: usize,
+    /// Visibility-group id of the patch's triangles in the blocker BVH
+    /// ([`Mesh::blocker_triangles`]): rays between a receiver and a shooter ignore their
+    /// two groups (a planar surface, or a cluster of facets, cannot block itself).
+    pub occluder: u32,
     pub material: MaterialId,
-    /// Counter-clockwise seen from the front (reversed for a back patch).
+    /// The shooting polygon, counter-clockwise seen from the front (reversed for a back
+    /// patch): the patch itself, or for a cluster of facets a planar proxy of the
+    /// cluster's area (convex hull of its vertices projected on its mean plane, scaled).
     pub polygon: Vec<DVec3>,
+    /// Points whose convex hull holds the whole patch (its elements and `polygon`): for
+    /// shaft culling.
+    pub bounds: Vec<DVec3>,
     pub normal: DVec3,
     pub area: f64,
     pub centroid: DVec3,
     pub elements: Range<u32>,
     /// True for the back side of a two-sided face.
     pub back: bool,
-    /// Largest distance from the centroid to a corner (bounding sphere radius).
+    /// Largest distance from the centroid to a point of `bounds` (bounding sphere radius).
     pub radius: f64,
     /// Area of the patch's largest element.
     pub largest_element_area: f64,
@@ -76,6 +171,8 @@ pub struct Element {
     pub centroid: DVec3,
     pub normal: DVec3,
     pub area: f64,
+    /// Index into `Scene::faces` of the face the element lies on.
+    pub face: u32,
 }
 
 impl Element {
@@ -110,6 +207,12 @@ pub struct Mesh {
     /// Element of each display triangle.
     pub triangle_element: Vec<ElementId>,
     pub element_size: f64,
+    pub patch_size: f64,
+    /// Visibility group of each scene face (see [`Patch::occluder`]).
+    pub face_occluder: Vec<u32>,
+    /// Input faces joined into planar surfaces, and shooters made of clustered facets.
+    pub surface_count: usize,
+    pub cluster_count: usize,
     t_vertices: Vec<TVertex>,
     /// Per vertex, the element weights of its value (CSR: `vertex_weights[start[v]..start[v+1]]`).
     vertex_weight_start: Vec<u32>,
@@ -120,129 +223,18 @@ pub struct Mesh {
 pub enum MeshError {
     #[error("element size must be a positive finite number, got {0}")]
     BadElementSize(f64),
+    #[error("patch size must be a positive finite number, got {0}")]
+    BadPatchSize(f64),
     #[error(
         "element size {size} would make about {count} elements (limit {MAX_ELEMENTS}); use a larger --element-size"
     )]
     TooManyElements { size: f64, count: usize },
 }
 
-/// A default element size: 1/80 of the scene's bounding-box diagonal (12 mm in the Cornell
-/// box, where it gives a converged image within 2 % of a path tracer; see README).
-pub fn default_element_size(scene: &Scene) -> f64 {
-    let d = scene.bounds().diagonal();
-    if d > 0.0 { d / 80.0 } else { 1.0 }
-}
-
 impl Mesh {
     /// Meshes with patches of about [`PATCH_ELEMENTS`] elements across.
     pub fn build(scene: &Scene, element_size: f64) -> Result<Mesh, MeshError> {
-        Mesh::build_with(scene, element_size, element_size * PATCH_ELEMENTS)
-    }
-
-    /// Meshes with explicit patch and element sizes (scene units).
-    pub fn build_with(
-        scene: &Scene,
-        element_size: f64,
-        patch_size: f64,
-    ) -> Result<Mesh, MeshError> {
-        if !(element_size.is_finite() && element_size > 0.0) {
-            return Err(MeshError::BadElementSize(element_size));
-        }
-        if !(patch_size.is_finite() && patch_size > 0.0) {
-            return Err(MeshError::BadElementSize(patch_size));
-        }
-        let sides = if scene.two_sided { 2 } else { 1 };
-        // Estimate before allocating.
-        let estimate: f64 = scene
-            .faces
-            .iter()
-            .map(|f| polygon::area(&f.vertices) / (element_size * element_size) + 1.0)
-            .sum::<f64>()
-            * sides as f64;
-        if estimate > MAX_ELEMENTS as f64 {
-            return Err(MeshError::TooManyElements {
-                size: element_size,
-                count: estimate as usize,
-            });
-        }
-        let mut patches = Vec::new();
-        let mut elements: Vec<Element> = Vec::new();
-        for (fi, face) in scene.faces.iter().enumerate() {
-            for side in 0..sides {
-                let back = side == 1;
-                let mut poly = face.vertices.clone();
-                if back {
-                    poly.reverse();
-                }
-                let Some(normal) = polygon::normal(&poly) else {
-                    continue;
-                };
-                let mut patch_polys: Vec<Vec<DVec3>> = Vec::new();
-                subdivide(&poly, patch_size, &mut |corners: &[DVec3]| {
-                    if polygon::area(corners) > 0.0 {
-                        patch_polys.push(corners.to_vec());
-                    }
-                });
-                for pp in patch_polys {
-                    let pid = PatchId(patches.len() as u32);
-                    let first = elements.len() as u32;
-                    let pn = polygon::normal(&pp).unwrap_or(normal);
-                    subdivide(&pp, element_size, &mut |corners: &[DVec3]| {
-                        let area = polygon::area(corners);
-                        if area <= 0.0 {
-                            return;
-                        }
-                        let mut c = [DVec3::ZERO; 4];
-                        c[..corners.len()].copy_from_slice(corners);
-                        elements.push(Element {
-                            patch: pid,
-                            corners: c,
-                            corner_count: corners.len() as u8,
-                            vertices: [0; 4],
-                            centroid: polygon::centroid(corners),
-                            normal: polygon::normal(corners).unwrap_or(pn),
-                            area,
-                        });
-                    });
-                    let centroid = polygon::centroid(&pp);
-                    patches.push(Patch {
-                        face: fi,
-                        source_face: face.source_face,
-                        material: face.material,
-                        area: polygon::area(&pp),
-                        centroid,
-                        radius: pp
-                            .iter()
-                            .map(|v| (*v - centroid).length())
-                            .fold(0.0, f64::max),
-                        largest_element_area: elements[first as usize..]
-                            .iter()
-                            .map(|e| e.area)
-                            .fold(0.0, f64::max),
-                        polygon: pp,
-                        normal: pn,
-                        elements: first..elements.len() as u32,
-                        back,
-                    });
-                }
-            }
-        }
-        static NEXT_MESH_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
-        let mut mesh = Mesh {
-            id: NEXT_MESH_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
-            patches,
-            elements,
-            vertices: Vec::new(),
-            triangles: Vec::new(),
-            triangle_element: Vec::new(),
-            element_size,
-            t_vertices: Vec::new(),
-            vertex_weight_start: Vec::new(),
-            vertex_weights: Vec::new(),
-        };
-        mesh.build_vertices(scene);
-        mesh.build_vertex_weights();
-        Ok(mesh)
+        Mesh::build_with(scene, element_size, default_patch_size(element_size))
     }
 
     pub fn patch(&self, id: PatchId) -> &Patch {
@@ -251,20 +243,21 @@ impl Mesh {
 
     /// Axis-aligned bounds of all patches.
     pub fn bounds(&self) -> Aabb {
-        Aabb::from_points(self.patches.iter().flat_map(|p| p.polygon.iter()))
+        Aabb::from_points(self.patches.iter().flat_map(|p| p.bounds.iter()))
     }
 
-    /// Triangles of the input faces (ids = face index) for visibility queries. Faces, not
-    /// patches: the hierarchy stays as small as the model (38 triangles for the Cornell box
-    /// instead of one or two per patch).
-    pub fn face_triangles(scene: &Scene) -> Vec<TriangleInput> {
+    /// Triangles of the input faces for visibility queries, with ids = the face's
+    /// visibility group ([`Patch::occluder`]). Faces, not patches: the hierarchy stays as
+    /// small as the model (38 triangles for the Cornell box instead of one or two per
+    /// patch).
+    pub fn blocker_triangles(&self, scene: &Scene) -> Vec<TriangleInput> {
         let mut out = Vec::new();
         for (i, f) in scene.faces.iter().enumerate() {
             let v = &f.vertices;
             for t in polygon::triangulate(v) {
                 out.push(TriangleInput {
                     vertices: [v[t[0]], v[t[1]], v[t[2]]],
-                    id: i as u32,
+                    id: self.face_occluder[i],
                     cull_back: false,
                 });
             }
@@ -289,316 +282,13 @@ impl Mesh {
             })
             .collect()
     }
-
-    /// Per-vertex values from per-element values (one value per element, its centroid's).
-    ///
-    /// A vertex inside a surface takes the value at the vertex of the area-weighted
-    /// least-squares plane through the centroids of the elements of that surface meeting at
-    /// it (on a regular grid, their plain average). A vertex on a surface's boundary — a
-    /// corner, a contact line — has elements on one side only, where an average is the value
-    /// half an element inwards, an O(h) bias exactly where radiosity changes fastest; there
-    /// the plane is fitted through two rings of elements and extrapolated (O(h²)). Results
-    /// are clamped to be non-negative. A linear field is reproduced exactly. T-vertices are interpolated along the
-    /// edge they lie on, so shading has no cracks.
-    pub fn vertex_values(&self, element_values: &[Rgb]) -> Vec<Rgb> {
-        debug_assert_eq!(element_values.len(), self.elements.len());
-        let mut out: Vec<Rgb> = (0..self.vertices.len())
-            .map(|v| {
-                let (a, b) = (
-                    self.vertex_weight_start[v] as usize,
-                    self.vertex_weight_start[v + 1] as usize,
-                );
-                let value: Rgb = self.vertex_weights[a..b]
-                    .iter()
-                    .map(|&(e, w)| element_values[e as usize] * w)
-                    .sum();
-                value.max(Rgb::ZERO)
-            })
-            .collect();
-        // Nested T-vertices settle in a few passes.
-        for _ in 0..3 {
-            for tv in &self.t_vertices {
-                out[tv.vertex as usize] =
-                    out[tv.a as usize] * (1.0 - tv.t) + out[tv.b as usize] * tv.t;
-            }
-        }
-        out
-    }
-
-    /// Precomputes the weights used by [`Mesh::vertex_values`].
-    fn build_vertex_weights(&mut self) {
-        let nv = self.vertices.len();
-        let mut count = vec![0u32; nv + 1];
-        for e in &self.elements {
-            for &v in e.vertex_ids() {
-                count[v as usize + 1] += 1;
-            }
-        }
-        for i in 0..nv {
-            count[i + 1] += count[i];
-        }
-        let mut at = count.clone();
-        let mut adjacent = vec![0u32; count[nv] as usize];
-        for (ei, e) in self.elements.iter().enumerate() {
-            for &v in e.vertex_ids() {
-                adjacent[at[v as usize] as usize] = ei as u32;
-                at[v as usize] += 1;
-            }
-        }
-        let elems_of =
-            |v: u32| &adjacent[count[v as usize] as usize..count[v as usize + 1] as usize];
-        let mut start = Vec::with_capacity(nv + 1);
-        let mut weights = Vec::with_capacity(count[nv] as usize * 2);
-        let mut ring: Vec<u32> = Vec::new();
-        for v in 0..nv as u32 {
-            start.push(weights.len() as u32);
-            let p = self.vertices[v as usize];
-            let first = elems_of(v);
-            let total: f64 = first.iter().map(|&e| self.elements[e as usize].area).sum();
-            if first.is_empty() || total <= 0.0 {
-                continue;
-            }
-            let h = (total / first.len() as f64).sqrt();
-            let offset = first
-                .iter()
-                .map(|&e| {
-                    let el = &self.elements[e as usize];
-                    (el.centroid - p) * el.area
-                })
-                .sum::<DVec3>()
-                / total;
-            let average = |weights: &mut Vec<(u32, f64)>| {
-                for &e in first {
-                    weights.push((e, self.elements[e as usize].area / total));
-                }
-            };
-            // A least-squares plane through the centroids: over the elements at the vertex
-            // when they surround it (the plain average on a regular grid), over two rings of
-            // elements on a boundary (or where one ring is too thin to fit), extrapolating.
-            let n = self.elements[first[0] as usize].normal;
-            let (t1, t2) = n.any_orthonormal_pair();
-            let phi = |e: u32| {
-                let d = (self.elements[e as usize].centroid - p) / h;
-                DVec3::new(1.0, d.dot(t1), d.dot(t2))
-            };
-            let fit = |ring: &[u32]| -> Option<DVec3> {
-                let mut m = glam::DMat3::ZERO;
-                for &e in ring {
-                    let f = phi(e);
-                    let a = self.elements[e as usize].area;
-                    m += glam::DMat3::from_cols(f * f.x, f * f.y, f * f.z) * a;
-                }
-                let scale = m.x_axis.x.max(f64::MIN_POSITIVE);
-                (ring.len() >= 3 && (m.determinant() / scale.powi(3)).abs() > 1e-6)
-                    .then(|| m.inverse() * DVec3::X)
-            };
-            let mut solution = if offset.length() < 0.2 * h {
-                fit(first).map(|z| (z, first.to_vec()))
-            } else {
-                None
-            };
-            if solution.is_none() {
-                ring.clear();
-                for &e in first {
-                    for &u in self.elements[e as usize].vertex_ids() {
-                        ring.extend_from_slice(elems_of(u));
-                    }
-                }
-                ring.sort_unstable();
-                ring.dedup();
-                solution = fit(&ring).map(|z| (z, ring.clone()));
-            }
-            match solution {
-                Some((z, ring)) => {
-                    for e in ring {
-                        let w = self.elements[e as usize].area * z.dot(phi(e));
-                        debug_assert!(w.is_finite());
-                        weights.push((e, w));
-                    }
-                }
-                None => average(&mut weights),
-            }
-        }
-        start.push(weights.len() as u32);
-        self.vertex_weight_start = start;
-        self.vertex_weights = weights;
-    }
-
-    fn build_vertices(&mut self, scene: &Scene) {
-        // Surfaces: all patches of one input face, joined with other faces of the same
-        // material and side that lie in the same plane.
-        let mut surfaces: Vec<(MaterialId, bool, DVec3, f64)> = Vec::new();
-        let mut face_surface: HashMap<(usize, bool), u32> = HashMap::new();
-        let diag = self.bounds().diagonal().max(1e-300);
-        let eps = 1e-6 * diag;
-        let mut patch_surface = Vec::with_capacity(self.patches.len());
-        for p in &self.patches {
-            let id = *face_surface.entry((p.face, p.back)).or_insert_with(|| {
-                let f = &scene.faces[p.face].vertices;
-                let mut n = polygon::normal(f).unwrap_or(p.normal);
-                if p.back {
-                    n = -n;
-                }
-                let offset = n.dot(polygon::centroid(f));
-                let found = surfaces.iter().position(|(m, back, sn, d)| {
-                    *m == p.material
-                        && *back == p.back
-                        && sn.dot(n) > 0.9998
-                        && (d - offset).abs() < 1e-4 * diag
-                });
-                found.unwrap_or_else(|| {
-                    surfaces.push((p.material, p.back, n, offset));
-                    surfaces.len() - 1
-                }) as u32
-            });
-            patch_surface.push(id);
-        }
-        let quant = |p: DVec3| {
-            let q = (p / eps).round();
-            (q.x as i64, q.y as i64, q.z as i64)
-        };
-        let mut index: HashMap<(u32, (i64, i64, i64)), u32> = HashMap::new();
-        let mut vertex_surface: Vec<u32> = Vec::new();
-        for ei in 0..self.elements.len() {
-            let surface = patch_surface[self.elements[ei].patch.0 as usize];
-            for k in 0..self.elements[ei].corner_count as usize {
-                let p = self.elements[ei].corners[k];
-                let id = *index.entry((surface, quant(p))).or_insert_with(|| {
-                    self.vertices.push(p);
-                    vertex_surface.push(surface);
-                    self.vertices.len() as u32 - 1
-                });
-                self.elements[ei].vertices[k] = id;
-            }
-            let v = self.elements[ei].vertices;
-            let eid = ElementId(ei as u32);
-            self.triangles.push([v[0], v[1], v[2]]);
-            self.triangle_element.push(eid);
-            if self.elements[ei].corner_count == 4 {
-                self.triangles.push([v[0], v[2], v[3]]);
-                self.triangle_element.push(eid);
-            }
-        }
-        self.find_t_vertices(&patch_surface, &vertex_surface, eps);
-    }
-
-    fn find_t_vertices(&mut self, patch_surface: &[u32], vertex_surface: &[u32], eps: f64) {
-        // Only surfaces made of several patches can have T-vertices between patches.
-        let mut patches_per_surface: HashMap<u32, usize> = HashMap::new();
-        for s in patch_surface {
-            *patches_per_surface.entry(*s).or_default() += 1;
-        }
-        let cell = self.element_size.max(eps);
-        let key = |p: DVec3| {
-            let q = (p / cell).floor();
-            (q.x as i64, q.y as i64, q.z as i64)
-        };
-        let mut grid: HashMap<(i64, i64, i64), Vec<u32>> = HashMap::new();
-        for (v, p) in self.vertices.iter().enumerate() {
-            if patches_per_surface[&vertex_surface[v]] > 1 {
-                grid.entry(key(*p)).or_default().push(v as u32);
-            }
-        }
-        if grid.is_empty() {
-            return;
-        }
-        let mut found: HashMap<u32, TVertex> = HashMap::new();
-        for e in &self.elements {
-            let surface = patch_surface[e.patch.0 as usize];
-            if patches_per_surface[&surface] < 2 {
-                continue;
-            }
-            let n = e.corner_count as usize;
-            for k in 0..n {
-                let (a, b) = (e.vertices[k], e.vertices[(k + 1) % n]);
-                let (pa, pb) = (self.vertices[a as usize], self.vertices[b as usize]);
-                let d = pb - pa;
-                let len2 = d.length_squared();
-                if len2 <= 0.0 {
-                    continue;
-                }
-                let (lo, hi) = (
-                    key(pa.min(pb) - DVec3::splat(eps)),
-                    key(pa.max(pb) + DVec3::splat(eps)),
-                );
-                for x in lo.0..=hi.0 {
-                    for y in lo.1..=hi.1 {
-                        for z in lo.2..=hi.2 {
-                            let Some(list) = grid.get(&(x, y, z)) else {
-                                continue;
-                            };
-                            for &v in list {
-                                if v == a || v == b || vertex_surface[v as usize] != surface {
-                                    continue;
-                                }
-                                let p = self.vertices[v as usize];
-                                let t = (p - pa).dot(d) / len2;
-                                if t <= 1e-9 || t >= 1.0 - 1e-9 {
-                                    continue;
-                                }
-                                if (pa + d * t - p).length() < eps * 10.0 {
-                                    found.entry(v).or_insert(TVertex { vertex: v, a, b, t });
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        let mut list: Vec<TVertex> = found.into_values().collect();
-        list.sort_by_key(|t| t.vertex);
-        self.t_vertices = list;
-    }
-
-    /// Number of T-vertices found (for tests and statistics).
-    pub fn t_vertex_count(&self) -> usize {
-        self.t_vertices.len()
-    }
-}
-
-/// Calls `emit` with the corners of each element of `poly`.
-fn subdivide(poly: &[DVec3], size: f64, emit: &mut dyn FnMut(&[DVec3])) {
-    if poly.len() == 4 && polygon::is_convex(poly) {
-        let [p0, p1, p2, p3] = [poly[0], poly[1], poly[2], poly[3]];
-        let nu = steps(((p1 - p0).length()).max((p2 - p3).length()), size);
-        let nv = steps(((p3 - p0).length()).max((p2 - p1).length()), size);
-        let at = |i: usize, j: usize| {
-            let (u, v) = (i as f64 / nu as f64, j as f64 / nv as f64);
-            (p0 * (1.0 - u) + p1 * u) * (1.0 - v) + (p3 * (1.0 - u) + p2 * u) * v
-        };
-        for j in 0..nv {
-            for i in 0..nu {
-                emit(&[at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
-            }
-        }
-        return;
-    }
-    for t in polygon::triangulate(poly) {
-        let (a, b, c) = (poly[t[0]], poly[t[1]], poly[t[2]]);
-        let longest = (b - a).length().max((c - b).length()).max((a - c).length());
-        let n = steps(longest, size);
-        let at = |i: usize, j: usize| {
-            a + (b - a) * (i as f64 / n as f64) + (c - a) * (j as f64 / n as f64)
-        };
-        for j in 0..n {
-            for i in 0..n - j {
-                emit(&[at(i, j), at(i + 1, j), at(i, j + 1)]);
-                if i + j + 1 < n {
-                    emit(&[at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
-                }
-            }
-        }
-    }
-}
-
-fn steps(length: f64, size: f64) -> usize {
-    ((length / size).ceil() as usize).clamp(1, 100_000)
 }
 
 #[cfg(test)]
 mod tests {
+    use super::build::subdivide;
     use super::*;
-    use crate::scene::{LoadOptions, Scene};
+    use crate::scene::{LoadOptions, Rgb, Scene};
 
     fn cornell() -> Scene {
         Scene::builtin("cornell", &LoadOptions::default()).expect("cornell")
@@ -637,8 +327,9 @@ mod tests {
             DVec3::new(3.0, 0.0, 0.0),
             DVec3::new(0.0, 3.0, 0.0),
         ];
+        // Area 4.5, at most half a 1.5² square per element: a 2 × 2 grid of 1.125 each.
         subdivide(&tri, 1.5, &mut |c| out.push(polygon::area(c)));
-        assert_eq!(out.len(), 9);
+        assert_eq!(out.len(), 4);
         assert!((out.iter().sum::<f64>() - 4.5).abs() < 1e-12);
     }
 
@@ -696,8 +387,9 @@ mod tests {
             .map(|e| Rgb::splat(e.centroid.x))
             .collect();
         assert!(mesh3.vertex_values(&values).iter().all(|v| v.is_finite()));
-        // A true T-vertex: a single quad next to two stacked quads.
-        let obj4 = "mtllib m.mtl\nusemtl w\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 0.5 0\nv 1 0.5 0\nv 2 1 0\nf 1 2 3 4\nf 2 5 6 7\nf 7 6 8 3\nusemtl l\nv 0 0 3\nv 0 1 3\nv 1 1 3\nf 9 10 11\n";
+        // A true T-vertex: a single quad next to two stacked quads (the upper one narrower,
+        // so that the two do not merge into one convex surface without the vertex).
+        let obj4 = "mtllib m.mtl\nusemtl w\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 0.5 0\nv 1 0.5 0\nv 1.5 1 0\nv 1.5 0.5 0\nf 1 2 3 4\nf 2 5 6 9 7\nf 7 9 8 3\nusemtl l\nv 0 0 3\nv 0 1 3\nv 1 1 3\nf 10 11 12\n";
         let scene4 = Scene::from_obj_str("t.obj", obj4, &[("m.mtl", mtl)], &LoadOptions::default())
             .expect("scene");
         let mesh4 = Mesh::build(&scene4, 10.0).expect("mesh");

@@ -7,6 +7,7 @@
 
 pub mod image;
 pub mod pathtrace;
+pub mod view;
 
 pub use self::image::{Image, relative_rms};
 pub use crate::scene::Camera;

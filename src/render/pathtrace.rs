@@ -129,6 +129,26 @@ impl<'a> PathTracer<'a> {
         result
     }
 
+    /// Whether a camera ray's first hit is a light or the lit front of a surface (direct
+    /// light from one of `samples` light samples arrives): the score of a candidate view.
+    pub fn first_hit_is_lit(&self, ray: &Ray, samples: u32, rng: &mut Rng) -> bool {
+        let Some(hit) = self.bvh.closest_hit(ray, 0.0, f64::INFINITY) else {
+            return false;
+        };
+        let (face, mut n) = self.tri_face[hit.id as usize];
+        if !hit.front {
+            if !self.scene.two_sided {
+                return false;
+            }
+            n = -n;
+        }
+        if self.scene.materials[self.scene.faces[face].material.0 as usize].is_emitter() {
+            return true;
+        }
+        let x = ray.at(hit.t);
+        (0..samples).any(|_| self.direct(x, n, rng).max_element() > 0.0)
+    }
+
     /// Direct irradiance term `(1/π) ∫ Le cosθ dω` at `x` (to be multiplied by ρ).
     fn direct(&self, x: DVec3, n: DVec3, rng: &mut Rng) -> Rgb {
         if self.lights.is_empty() {

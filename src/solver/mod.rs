@@ -28,6 +28,9 @@ pub struct SolverConfig {
     pub element_size: Option<f64>,
     /// Patch (shooter) edge length; `None` = [`mesh::default_patch_size`].
     pub patch_size: Option<f64>,
+    /// Element budget for the element size when `element_size` is `None`; `None` =
+    /// [`mesh::default_element_size`].
+    pub max_elements: Option<usize>,
     pub method: FormFactorMethod,
     pub formfactor: FormFactorParams,
     /// Memory for cached form-factor rows, in bytes.
@@ -42,6 +45,7 @@ impl Default for SolverConfig {
         Self {
             element_size: None,
             patch_size: None,
+            max_elements: None,
             method: FormFactorMethod::Contour,
             formfactor: FormFactorParams::default(),
             row_cache_bytes: 512 << 20,
@@ -179,6 +183,30 @@ fn channel_sum(c: Rgb) -> f64 {
     c.x.abs() + c.y.abs() + c.z.abs()
 }
 
+/// Scales a row so that a shot never delivers more power than it carries:
+/// `Σ_j F_ji A_j ≤ A_i`. Form factors evaluated at element centroids are not exactly
+/// reciprocal; where a small shooter lies close to a large receiving element's centroid
+/// (contact, slivers, duplicated faces) `F_ji A_j` can exceed `A_i`, and repeated shots
+/// between such a pair gain energy without bound. Exact rows satisfy the bound
+/// (the row sum of a closed scene is 1 to the centroid rule's O(h²) error, ~1e-3 here, which
+/// is left alone: clipping it would bias every closed scene dark), so this changes only
+/// rows that break it grossly, and scales them back to delivering exactly the shot.
+const MAX_ROW_GAIN: f64 = 1.01;
+
+fn conserve_energy(mesh: &Mesh, shooter: PatchId, row: &mut [f32]) {
+    let area = mesh.patch(shooter).area;
+    let delivered: f64 = row
+        .iter()
+        .zip(&mesh.elements)
+        .map(|(f, e)| *f as f64 * e.area)
+        .sum();
+    if area > 0.0 && delivered > MAX_ROW_GAIN * area {
+        let k = (area / delivered) as f32;
+        row.iter_mut().for_each(|f| *f *= k);
+        debug_assert!(k.is_finite());
+    }
+}
+
 impl ProgressiveSolver {
     pub fn new(scene: Scene, config: SolverConfig) -> Result<Self, SolverError> {
         if config.method == FormFactorMethod::GpuHemicube && config.raster.is_none() {
@@ -186,14 +214,17 @@ impl ProgressiveSolver {
         }
         let size = config
             .element_size
-            .unwrap_or_else(|| mesh::default_element_size(&scene));
+            .unwrap_or_else(|| match config.max_elements {
+                Some(budget) => mesh::element_size_for_budget(&scene, budget),
+                None => mesh::default_element_size(&scene),
+            });
         let patch = config
             .patch_size
-            .unwrap_or_else(|| mesh::default_patch_size(&scene))
+            .unwrap_or_else(|| mesh::default_patch_size(size))
             .max(size);
         let mesh = Mesh::build_with(&scene, size, patch)?;
         check_power(&scene.materials, &mesh)?;
-        let bvh = Bvh::build(&Mesh::face_triangles(&scene));
+        let bvh = Bvh::build(&mesh.blocker_triangles(&scene));
         let epsilon = 1e-6 * mesh.bounds().diagonal().max(1e-12);
         let mut s = Self {
             scene,
@@ -259,11 +290,11 @@ impl ProgressiveSolver {
         let patch = self
             .config
             .patch_size
-            .unwrap_or_else(|| mesh::default_patch_size(&self.scene))
+            .unwrap_or_else(|| mesh::default_patch_size(element_size))
             .max(element_size);
         let mesh = Mesh::build_with(&self.scene, element_size, patch)?;
         check_power(&self.scene.materials, &mesh)?;
-        self.bvh = Bvh::build(&Mesh::face_triangles(&self.scene));
+        self.bvh = Bvh::build(&mesh.blocker_triangles(&self.scene));
         self.mesh = mesh;
         self.config.element_size = Some(element_size);
         self.rows.clear();
@@ -364,6 +395,15 @@ impl ProgressiveSolver {
             .collect()
     }
 
+    /// Per display vertex radiance (see [`Mesh::vertex_values`]).
+    pub fn vertex_radiance(&self, with_ambient: bool) -> Vec<[f32; 3]> {
+        self.mesh
+            .vertex_values(&self.element_radiance(with_ambient))
+            .into_iter()
+            .map(|v| v.as_vec3().to_array())
+            .collect()
+    }
+
     /// The patch with the largest unshot power, if any power is left.
     pub fn next_shooter(&self) -> Option<PatchId> {
         let mut best: Option<(f64, usize)> = None;
@@ -398,6 +438,7 @@ impl ProgressiveSolver {
         if !formfactor::compute_row(self.config.method, &ctx, shooter, &mut out, cancel) {
             return None;
         }
+        conserve_energy(&self.mesh, shooter, &mut out);
         let row: Arc<[f32]> = out.into();
         let bytes = row.len() * 4;
         if self.cached_bytes + bytes <= self.config.row_cache_bytes {
@@ -525,6 +566,11 @@ impl ProgressiveSolver {
         }
         self.emitted_power = self.current_emitted_power().max(f64::MIN_POSITIVE);
         Ok(())
+    }
+
+    /// Incident radiance per element, `H_j = Σ ΔB_i F_ji` over all shots.
+    pub fn incident(&self) -> &[Rgb] {
+        &self.incident
     }
 
     /// Emitted power Σ E·A and absorbed power Σ (1 − ρ)·H·A over elements. In a closed

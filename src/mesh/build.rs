@@ -1,0 +1,449 @@
+//! Building a [`Mesh`]: meshing units (a convex surface outline, a large face, or a
+//! cluster of small faces) into patches and elements.
+
+use glam::DVec3;
+
+use super::surfaces::Topology;
+use super::{Element, MAX_ELEMENTS, Mesh, MeshError, Patch, PatchId};
+use crate::geometry::polygon;
+use crate::scene::Scene;
+
+/// What one or more patches are made from.
+enum Unit {
+    /// A planar polygon (a surface's convex outline or one face), cut into patches.
+    Polygon { poly: Vec<DVec3>, face: usize },
+    /// Small faces shooting together as one patch.
+    Cluster { faces: Vec<u32> },
+}
+
+/// A triangle with `longest² / area` above this is a sliver (equilateral: 2.3, right
+/// isosceles: 4): bisected along its longest edge rather than cut into a regular grid.
+const SLIVER_RATIO: f64 = 12.0;
+
+impl Mesh {
+    /// Meshes with explicit patch and element sizes (scene units).
+    pub fn build_with(
+        scene: &Scene,
+        element_size: f64,
+        patch_size: f64,
+    ) -> Result<Mesh, MeshError> {
+        if !(element_size.is_finite() && element_size > 0.0) {
+            return Err(MeshError::BadElementSize(element_size));
+        }
+        if !(patch_size.is_finite() && patch_size > 0.0) {
+            return Err(MeshError::BadPatchSize(patch_size));
+        }
+        let patch_size = patch_size.max(element_size);
+        let sides = if scene.two_sided { 2 } else { 1 };
+        // Estimate before allocating: a face smaller than an element is one element.
+        let estimate: f64 = scene
+            .faces
+            .iter()
+            .map(|f| (2.0 * polygon::area(&f.vertices) / (element_size * element_size)).max(1.0))
+            .sum::<f64>()
+            * sides as f64;
+        if estimate > MAX_ELEMENTS as f64 {
+            return Err(MeshError::TooManyElements {
+                size: element_size,
+                count: estimate as usize,
+            });
+        }
+        let topo = Topology::new(scene);
+        let patch_area = patch_size * patch_size;
+        let mut units = Vec::new();
+        let mut small: Vec<u32> = Vec::new();
+        let mut surface_count = 0;
+        for members in topo.planar_members() {
+            let f0 = members[0] as usize;
+            if topo.normal[f0] == DVec3::ZERO {
+                continue;
+            }
+            if members.len() > 1
+                && let Some(poly) = topo.convex_outline(scene, &members)
+            {
+                surface_count += 1;
+                units.push(Unit::Polygon { poly, face: f0 });
+                continue;
+            }
+            for &f in &members {
+                if topo.area[f as usize] >= 0.5 * patch_area {
+                    units.push(Unit::Polygon {
+                        poly: scene.faces[f as usize].vertices.clone(),
+                        face: f as usize,
+                    });
+                } else {
+                    small.push(f);
+                }
+            }
+        }
+        let clusters = topo.clusters(&small, patch_area, 0.75 * patch_size);
+        let mut face_occluder = topo.planar.clone();
+        let mut next_occluder = topo.planar_count as u32;
+        let mut cluster_count = 0;
+        for faces in clusters {
+            if faces.len() > 1 {
+                cluster_count += 1;
+                let planar = topo.planar[faces[0] as usize];
+                if faces.iter().any(|&f| topo.planar[f as usize] != planar) {
+                    for &f in &faces {
+                        face_occluder[f as usize] = next_occluder;
+                    }
+                    next_occluder += 1;
+                }
+            }
+            units.push(Unit::Cluster { faces });
+        }
+
+        let mut patches = Vec::new();
+        let mut elements: Vec<Element> = Vec::new();
+        let mut element_group: Vec<u32> = Vec::new();
+        for unit in &units {
+            for side in 0..sides {
+                let back = side == 1;
+                let group = |face: usize| topo.display[face] * 2 + u32::from(back);
+                match unit {
+                    Unit::Polygon { poly, face } => {
+                        let mut poly = poly.clone();
+                        if back {
+                            poly.reverse();
+                        }
+                        let Some(normal) = polygon::normal(&poly) else {
+                            continue;
+                        };
+                        let mut patch_polys: Vec<Vec<DVec3>> = Vec::new();
+                        subdivide(&poly, patch_size, &mut |corners: &[DVec3]| {
+                            if polygon::area(corners) > 0.0 {
+                                patch_polys.push(corners.to_vec());
+                            }
+                        });
+                        for pp in patch_polys {
+                            let pid = PatchId(patches.len() as u32);
+                            let first = elements.len();
+                            let pn = polygon::normal(&pp).unwrap_or(normal);
+                            push_elements(&pp, pn, element_size, pid, *face, &mut elements);
+                            element_group.resize(elements.len(), group(*face));
+                            if elements.len() == first {
+                                continue;
+                            }
+                            patches.push(planar_patch(
+                                scene,
+                                *face,
+                                face_occluder[*face],
+                                pp,
+                                pn,
+                                back,
+                                &elements[first..],
+                                first as u32,
+                            ));
+                        }
+                    }
+                    Unit::Cluster { faces } => {
+                        let pid = PatchId(patches.len() as u32);
+                        let first = elements.len();
+                        for &f in faces {
+                            let mut poly = scene.faces[f as usize].vertices.clone();
+                            if back {
+                                poly.reverse();
+                            }
+                            let Some(n) = polygon::normal(&poly) else {
+                                continue;
+                            };
+                            push_elements(&poly, n, element_size, pid, f as usize, &mut elements);
+                            element_group.resize(elements.len(), group(f as usize));
+                        }
+                        if elements.len() == first {
+                            continue;
+                        }
+                        let f0 = faces[0] as usize;
+                        let patch = if faces.len() == 1 {
+                            let mut poly = scene.faces[f0].vertices.clone();
+                            if back {
+                                poly.reverse();
+                            }
+                            let n = polygon::normal(&poly).unwrap_or(DVec3::Z);
+                            planar_patch(
+                                scene,
+                                f0,
+                                face_occluder[f0],
+                                poly,
+                                n,
+                                back,
+                                &elements[first..],
+                                first as u32,
+                            )
+                        } else {
+                            cluster_patch(
+                                scene,
+                                f0,
+                                face_occluder[f0],
+                                back,
+                                &elements[first..],
+                                first as u32,
+                            )
+                        };
+                        patches.push(patch);
+                    }
+                }
+            }
+        }
+        static NEXT_MESH_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+        let mut mesh = Mesh {
+            id: NEXT_MESH_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+            patches,
+            elements,
+            vertices: Vec::new(),
+            triangles: Vec::new(),
+            triangle_element: Vec::new(),
+            element_size,
+            patch_size,
+            face_occluder,
+            surface_count,
+            cluster_count,
+            t_vertices: Vec::new(),
+            vertex_weight_start: Vec::new(),
+            vertex_weights: Vec::new(),
+        };
+        mesh.build_vertices(&element_group);
+        mesh.build_vertex_weights();
+        Ok(mesh)
+    }
+}
+
+fn push_elements(
+    poly: &[DVec3],
+    fallback_normal: DVec3,
+    size: f64,
+    patch: PatchId,
+    face: usize,
+    elements: &mut Vec<Element>,
+) {
+    subdivide(poly, size, &mut |corners: &[DVec3]| {
+        let area = polygon::area(corners);
+        if !(area > 0.0) {
+            return;
+        }
+        let mut c = [DVec3::ZERO; 4];
+        c[..corners.len()].copy_from_slice(corners);
+        elements.push(Element {
+            patch,
+            corners: c,
+            corner_count: corners.len() as u8,
+            vertices: [0; 4],
+            centroid: polygon::centroid(corners),
+            normal: polygon::normal(corners).unwrap_or(fallback_normal),
+            area,
+            face: face as u32,
+        });
+    });
+}
+
+#[allow(clippy::too_many_arguments)]
+fn planar_patch(
+    scene: &Scene,
+    face: usize,
+    occluder: u32,
+    poly: Vec<DVec3>,
+    normal: DVec3,
+    back: bool,
+    elements: &[Element],
+    first: u32,
+) -> Patch {
+    let centroid = polygon::centroid(&poly);
+    Patch {
+        face,
+        source_face: scene.faces[face].source_face,
+        occluder,
+        material: scene.faces[face].material,
+        area: elements.iter().map(|e| e.area).sum(),
+        centroid,
+        radius: poly
+            .iter()
+            .map(|v| (*v - centroid).length())
+            .fold(0.0, f64::max),
+        largest_element_area: elements.iter().map(|e| e.area).fold(0.0, f64::max),
+        bounds: poly.clone(),
+        polygon: poly,
+        normal,
+        elements: first..first + elements.len() as u32,
+        back,
+    }
+}
+
+/// A patch shooting for several small faces: a planar proxy polygon of the cluster's area
+/// in its mean plane (the convex hull of the corners projected on that plane, shrunk about
+/// its centroid to the cluster's area) and, for shaft culling, the hull lifted to the
+/// highest and lowest corner (a prism holding every element).
+fn cluster_patch(
+    scene: &Scene,
+    face: usize,
+    occluder: u32,
+    back: bool,
+    elements: &[Element],
+    first: u32,
+) -> Patch {
+    let area: f64 = elements.iter().map(|e| e.area).sum();
+    let centroid = elements.iter().map(|e| e.centroid * e.area).sum::<DVec3>() / area;
+    let mean: DVec3 = elements.iter().map(|e| e.normal * e.area).sum();
+    let normal = mean
+        .try_normalize()
+        .unwrap_or_else(|| elements[0].normal.try_normalize().unwrap_or(DVec3::Z));
+    let (t1, t2) = normal.any_orthonormal_pair();
+    let mut points: Vec<(f64, f64)> = Vec::new();
+    let (mut lo, mut hi) = (0.0f64, 0.0f64);
+    for e in elements {
+        for c in e.corners() {
+            let d = *c - centroid;
+            points.push((d.dot(t1), d.dot(t2)));
+            lo = lo.min(d.dot(normal));
+            hi = hi.max(d.dot(normal));
+        }
+    }
+    let hull = convex_hull_2d(&mut points);
+    let lift = |(u, v): (f64, f64), h: f64| centroid + t1 * u + t2 * v + normal * h;
+    let outline: Vec<DVec3> = hull.iter().map(|&p| lift(p, 0.0)).collect();
+    let hull_area = polygon::area(&outline);
+    let mut polygon: Vec<DVec3> = if hull.len() >= 3 && hull_area > 0.0 {
+        let c2 = polygon::centroid(&outline);
+        let k = (area / hull_area).sqrt().min(1.0);
+        outline.iter().map(|p| c2 + (*p - c2) * k).collect()
+    } else {
+        elements[0].corners().to_vec()
+    };
+    if polygon::normal(&polygon).is_some_and(|n| n.dot(normal) < 0.0) {
+        polygon.reverse();
+    }
+    let mut bounds: Vec<DVec3> = hull.iter().map(|&p| lift(p, lo)).collect();
+    bounds.extend(hull.iter().map(|&p| lift(p, hi)));
+    if bounds.is_empty() {
+        bounds = polygon.clone();
+    }
+    Patch {
+        face,
+        source_face: scene.faces[face].source_face,
+        occluder,
+        material: scene.faces[face].material,
+        area,
+        centroid,
+        radius: bounds
+            .iter()
+            .map(|v| (*v - centroid).length())
+            .fold(0.0, f64::max),
+        largest_element_area: elements.iter().map(|e| e.area).fold(0.0, f64::max),
+        polygon,
+        bounds,
+        normal,
+        elements: first..first + elements.len() as u32,
+        back,
+    }
+}
+
+/// Counter-clockwise convex hull (Andrew's monotone chain); collinear points dropped.
+fn convex_hull_2d(points: &mut [(f64, f64)]) -> Vec<(f64, f64)> {
+    points.sort_by(|a, b| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal));
+    if points.len() < 3 {
+        return points.to_vec();
+    }
+    let cross = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| {
+        (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
+    };
+    let mut hull: Vec<(f64, f64)> = Vec::with_capacity(points.len() * 2);
+    for pass in 0..2 {
+        let start = hull.len();
+        let iter: Box<dyn Iterator<Item = &(f64, f64)>> = if pass == 0 {
+            Box::new(points.iter())
+        } else {
+            Box::new(points.iter().rev())
+        };
+        for &p in iter {
+            while hull.len() >= start + 2
+                && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
+            {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+    }
+    hull
+}
+
+/// Calls `emit` with the corners of each element of `poly`: a convex quad as a bilinear
+/// grid of about `size` edges; anything else triangulated, each triangle cut into a regular
+/// grid of n² triangles of at most half a `size` square each (a triangle smaller than that
+/// stays whole), or, for a sliver, bisected along its longest edge to that area.
+pub(super) fn subdivide(poly: &[DVec3], size: f64, emit: &mut dyn FnMut(&[DVec3])) {
+    if poly.len() == 4 && polygon::is_convex(poly) {
+        let [p0, p1, p2, p3] = [poly[0], poly[1], poly[2], poly[3]];
+        let nu = steps(((p1 - p0).length()).max((p2 - p3).length()), size);
+        let nv = steps(((p3 - p0).length()).max((p2 - p1).length()), size);
+        let at = |i: usize, j: usize| {
+            let (u, v) = (i as f64 / nu as f64, j as f64 / nv as f64);
+            (p0 * (1.0 - u) + p1 * u) * (1.0 - v) + (p3 * (1.0 - u) + p2 * u) * v
+        };
+        for j in 0..nv {
+            for i in 0..nu {
+                emit(&[at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
+            }
+        }
+        return;
+    }
+    let target = 0.5 * size * size;
+    for t in polygon::triangulate(poly) {
+        let (a, b, c) = (poly[t[0]], poly[t[1]], poly[t[2]]);
+        let area = polygon::area(&[a, b, c]);
+        if !(area > 0.0) {
+            continue;
+        }
+        let longest = (b - a)
+            .length_squared()
+            .max((c - b).length_squared())
+            .max((a - c).length_squared());
+        if longest / area > SLIVER_RATIO {
+            bisect(a, b, c, target, 24, emit);
+            continue;
+        }
+        let n = steps((area / target).sqrt(), 1.0);
+        let at = |i: usize, j: usize| {
+            a + (b - a) * (i as f64 / n as f64) + (c - a) * (j as f64 / n as f64)
+        };
+        for j in 0..n {
+            for i in 0..n - j {
+                emit(&[at(i, j), at(i + 1, j), at(i, j + 1)]);
+                if i + j + 1 < n {
+                    emit(&[at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
+                }
+            }
+        }
+    }
+}
+
+/// Longest-edge bisection of a triangle (orientation kept) until each piece has at most
+/// `target` area.
+fn bisect(a: DVec3, b: DVec3, c: DVec3, target: f64, depth: u32, emit: &mut dyn FnMut(&[DVec3])) {
+    if depth == 0 || polygon::area(&[a, b, c]) <= target * (1.0 + 1e-9) {
+        emit(&[a, b, c]);
+        return;
+    }
+    let (ab, bc, ca) = (
+        (b - a).length_squared(),
+        (c - b).length_squared(),
+        (a - c).length_squared(),
+    );
+    // Rotate so that the longest edge is a–b.
+    let (a, b, c) = if ab >= bc && ab >= ca {
+        (a, b, c)
+    } else if bc >= ca {
+        (b, c, a)
+    } else {
+        (c, a, b)
+    };
+    let m = (a + b) * 0.5;
+    bisect(a, m, c, target, depth - 1, emit);
+    bisect(m, b, c, target, depth - 1, emit);
+}
+
+/// Segments of at most `size` along `length`. A ratio within 1e-9 of a whole number counts
+/// as that number, so the same scene written at another scale meshes the same.
+fn steps(length: f64, size: f64) -> usize {
+    ((length / size * (1.0 - 1e-9)).ceil() as usize).clamp(1, 100_000)
+}
