@@ -165,15 +165,15 @@ fn random_command_sequences_never_panic_or_deadlock() {
     eprintln!("{n_commands} commands, {snapshots} snapshots seen, {errors} errors reported");
 }
 
-/// Area-weighted relative L2 difference of per-corner radiance.
-fn rel_l2(a: &[[f32; 3]], b: &[[f32; 3]], positions: &[[f32; 3]]) -> f64 {
+/// Area-weighted relative L2 difference of per-vertex radiance over the triangle corners.
+fn rel_l2(a: &[[f32; 3]], b: &[[f32; 3]], g: &nusselt::viewer::snapshot::Geometry) -> f64 {
     let (mut num, mut den) = (0.0, 0.0);
-    for t in 0..positions.len() / 3 {
-        let p = |k: usize| glam::DVec3::from(positions[3 * t + k].map(f64::from));
+    for t in g.indices.chunks_exact(3) {
+        let p = |k: usize| glam::DVec3::from(g.positions[t[k] as usize].map(f64::from));
         let area = (p(1) - p(0)).cross(p(2) - p(0)).length() * 0.5;
-        for k in 0..3 {
-            let x = glam::DVec3::from(a[3 * t + k].map(f64::from));
-            let y = glam::DVec3::from(b[3 * t + k].map(f64::from));
+        for &v in t {
+            let x = glam::DVec3::from(a[v as usize].map(f64::from));
+            let y = glam::DVec3::from(b[v as usize].map(f64::from));
             num += (x - y).length_squared() * area;
             den += y.length_squared() * area;
         }
@@ -256,11 +256,7 @@ fn an_edit_while_running_converges_to_a_fresh_solve() {
     let fresh_corners = converged
         .geometry
         .expand(&fresh.mesh().vertex_values(&fresh.element_radiance(false)));
-    let rel = rel_l2(
-        &converged.radiance,
-        &fresh_corners,
-        &converged.geometry.positions,
-    );
+    let rel = rel_l2(&converged.radiance, &fresh_corners, &converged.geometry);
     eprintln!(
         "edit at shot {before_edit}, converged after {} shots; edited vs fresh: {rel:.2e}",
         converged.stats.shots
@@ -348,11 +344,11 @@ fn ply_export_holds_the_snapshot() {
             .unwrap_or_else(|| panic!("no element {what}"))
     };
     let (nv, nf) = (count("vertex"), count("face"));
-    assert_eq!(nf * 3, s.geometry.corner_vertex.len());
+    assert_eq!(nf * 3, s.geometry.indices.len());
     assert_eq!(at + nv * 27 + nf * 13, bytes.len());
     // Every corner's radiance (with ambient) is in its vertex record, and 8-bit sRGB matches.
     let f = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
-    for (k, &v) in s.geometry.corner_vertex.iter().enumerate().step_by(97) {
+    for (k, &v) in s.geometry.source_vertex.iter().enumerate().step_by(97) {
         let o = at + v as usize * 27;
         for c in 0..3 {
             let want = s.radiance[k][c] + s.reflectance[k][c] * s.ambient[c];
@@ -394,7 +390,7 @@ fn it_starts_dark_brightens_and_the_ambient_term_decays() {
         .count();
     assert!(
         lit > 0 && lit < dark.radiance.len() / 10,
-        "{lit} lit corners at shot 0"
+        "{lit} lit vertices at shot 0"
     );
     send(&h, Command::Play, deadline);
     let done = first_snapshot(&h, deadline, |s| s.stats.converged);
@@ -461,7 +457,7 @@ fn a_surface_made_a_light_and_back_converges_to_the_original() {
     let want = done
         .geometry
         .expand(&fresh.mesh().vertex_values(&fresh.element_radiance(false)));
-    let rel = rel_l2(&done.radiance, &want, &done.geometry.positions);
+    let rel = rel_l2(&done.radiance, &want, &done.geometry);
     eprintln!(
         "light and back: {} shots; vs fresh {rel:.2e}",
         done.stats.shots

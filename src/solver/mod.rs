@@ -395,15 +395,6 @@ impl ProgressiveSolver {
             .collect()
     }
 
-    /// Per display vertex radiance (see [`Mesh::vertex_values`]).
-    pub fn vertex_radiance(&self, with_ambient: bool) -> Vec<[f32; 3]> {
-        self.mesh
-            .vertex_values(&self.element_radiance(with_ambient))
-            .into_iter()
-            .map(|v| v.as_vec3().to_array())
-            .collect()
-    }
-
     /// The patch with the largest unshot power, if any power is left.
     pub fn next_shooter(&self) -> Option<PatchId> {
         let mut best: Option<(f64, usize)> = None;

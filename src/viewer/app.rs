@@ -1,62 +1,54 @@
-//! The eframe app: takes snapshots, draws the viewport and panels, and applies every user
-//! action in one place ([`ViewerApp::handle`]).
+//! The eframe app: takes snapshots and events from the solver thread, lays out the panels
+//! and the viewport, and applies every user action in one place ([`ViewerApp::handle`]).
+//! The viewport and its keys are in [`super::viewport`], scripted runs in
+//! [`super::automation`], timings in [`super::frame_log`].
 
-use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 use eframe::egui;
-use eframe::egui_wgpu;
 
 use crate::scene::{LoadOptions, Scene};
 use crate::solver::SolverConfig;
 
 use super::UiOptions;
-use super::automation::{Automation, EditTarget, FrameLog, FrameRow, ScreenshotWhen, ShotState};
+use super::automation::{Automation, ScreenshotWhen, ShotState};
 use super::camera::OrbitCamera;
+use super::dialog::{Dialogs, Outcome, Purpose, Request};
 use super::export;
+use super::frame_log::{EditLatency, FrameLog, FrameRow};
 use super::panels::{self, Action, PanelState, ViewSettings};
-use super::render::{
-    FLAG_SELECTION, FLAG_SHOOTER, NO_PATCH, Overlays, Uniforms, ViewportCallback, ViewportResources,
-};
+use super::render::ViewportResources;
 use super::snapshot::Snapshot;
 use super::solver_thread::{Command, Event, Latest, SolverHandle, ThreadConfig};
 
 const RECENT_KEY: &str = "nusselt.recent";
 const MAX_RECENT: usize = 10;
 
-/// An edit sent and not yet seen drawn (for the latency figure).
-struct PendingEdit {
-    sent: Instant,
-    material: u32,
-    kd: [f64; 3],
-    ke: [f64; 3],
-}
-
 pub struct ViewerApp {
     solver: SolverHandle,
-    /// Commands that did not fit in the channel yet (sent first next frame).
-    outbox: VecDeque<Command>,
-    snapshot: Option<Arc<Snapshot>>,
+    pub(super) snapshot: Option<Arc<Snapshot>>,
     new_snapshot: bool,
     scene_rev: Option<u64>,
-    camera: Option<OrbitCamera>,
-    viewport_rect: egui::Rect,
-    panel: PanelState,
+    pub(super) camera: Option<OrbitCamera>,
+    pub(super) viewport_rect: egui::Rect,
+    pub(super) panel: PanelState,
     resync_editor_after: Option<u64>,
-    auto: Automation,
-    shot_state: ShotState,
-    screenshot_image: Arc<Latest<Arc<egui::ColorImage>>>,
+    pub(super) auto: Automation,
+    pub(super) shot_state: ShotState,
+    pub(super) screenshot_image: Arc<Latest<Arc<egui::ColorImage>>>,
     /// Viewport PNG export waiting for its screenshot.
     png_export: Option<(PathBuf, egui::Rect)>,
     png_image: Arc<Latest<Arc<egui::ColorImage>>>,
-    edits_sent: bool,
-    pending_edits: Vec<PendingEdit>,
+    /// The file dialog in progress (runs on its own thread).
+    dialogs: Dialogs,
+    pub(super) edits_sent: bool,
+    pub(super) edit_latency: EditLatency,
     frame_log: FrameLog,
     log_frames: bool,
     started: Instant,
-    first_frame: Option<Instant>,
+    pub(super) first_frame: Option<Instant>,
     last_frame: Option<Instant>,
     logic_start: Option<Instant>,
     /// Set when a scripted run fails (read by `viewer::run` after the window closes).
@@ -120,12 +112,12 @@ impl ViewerApp {
             selection: options.automation.select,
             recent,
             messages: Vec::new(),
+            solver_failure: None,
             show_plot: true,
         };
         let log_frames = options.automation.frame_log.is_some();
         Ok(Self {
             solver,
-            outbox: VecDeque::new(),
             snapshot: None,
             new_snapshot: false,
             scene_rev: None,
@@ -138,8 +130,9 @@ impl ViewerApp {
             screenshot_image: Arc::new(Latest::default()),
             png_export: None,
             png_image: Arc::new(Latest::default()),
+            dialogs: Dialogs::default(),
             edits_sent: false,
-            pending_edits: Vec::new(),
+            edit_latency: EditLatency::default(),
             frame_log: FrameLog::default(),
             log_frames,
             started,
@@ -151,7 +144,7 @@ impl ViewerApp {
         })
     }
 
-    fn message(&mut self, error: bool, text: impl Into<String>) {
+    pub(super) fn message(&mut self, error: bool, text: impl Into<String>) {
         let text = text.into();
         if error {
             eprintln!("viewer: {text}");
@@ -162,32 +155,11 @@ impl ViewerApp {
         }
     }
 
-    fn fail(&mut self, ctx: &egui::Context, text: String) {
+    pub(super) fn fail(&mut self, ctx: &egui::Context, text: String) {
         eprintln!("error: {text}");
         *self.outcome.lock().unwrap_or_else(PoisonError::into_inner) = Some(text);
         self.shot_state = ShotState::Done;
         ctx.send_viewport_cmd(egui::ViewportCommand::Close);
-    }
-
-    fn send(&mut self, command: Command) {
-        // Consecutive edits of one material collapse into the newest.
-        if let Command::SetMaterial { material, .. } = &command
-            && let Some(Command::SetMaterial { material: last, .. }) = self.outbox.back()
-            && last == material
-        {
-            self.outbox.pop_back();
-        }
-        self.outbox.push_back(command);
-        self.flush();
-    }
-
-    fn flush(&mut self) {
-        while let Some(c) = self.outbox.pop_front() {
-            if let Err(back) = self.solver.send(c) {
-                self.outbox.push_front(back);
-                break;
-            }
-        }
     }
 
     fn on_snapshot(&mut self, s: Arc<Snapshot>) {
@@ -227,32 +199,11 @@ impl ViewerApp {
             self.panel.editor = None;
             self.resync_editor_after = None;
         }
-        let now = Instant::now();
-        let mut latencies = Vec::new();
-        self.pending_edits.retain(|e| {
-            let drawn = s
-                .materials
-                .get(e.material as usize)
-                .is_some_and(|m| m.reflectance.to_array() == e.kd && m.emission.to_array() == e.ke);
-            if drawn {
-                latencies.push((
-                    (now - e.sent).as_secs_f64() * 1e3,
-                    s.edit_published
-                        .unwrap_or(s.published)
-                        .saturating_duration_since(e.sent)
-                        .as_secs_f64()
-                        * 1e3,
-                ));
-            }
-            !drawn
-        });
-        for (drawn, published) in latencies {
-            self.frame_log.edit_latency_ms.push(drawn);
-            self.frame_log.edit_publish_ms.push(published);
-        }
+        self.edit_latency.on_snapshot(&s, &mut self.frame_log);
+        self.frame_log.mesh_size = Some((s.radiance.len(), s.geometry.indices.len() / 3));
         // The material changed from elsewhere (reset, scripted edit): show its new values.
         if let Some(ed) = &self.panel.editor
-            && !self.pending_edits.iter().any(|e| e.material == ed.material)
+            && !self.edit_latency.waits_for(ed.material)
             && let Some(m) = s.materials.get(ed.material as usize)
             && (m.reflectance.to_array() != ed.kd || m.emission.to_array() != ed.ke)
         {
@@ -265,6 +216,10 @@ impl ViewerApp {
     fn on_event(&mut self, e: Event) {
         match e {
             Event::Error(text) => self.message(true, text),
+            Event::Failed(text) => {
+                self.panel.solver_failure = Some(text.clone());
+                self.message(true, text);
+            }
             Event::Loaded { name, source } => {
                 if let Some(p) = source {
                     let p = std::fs::canonicalize(&p).unwrap_or(p);
@@ -272,31 +227,28 @@ impl ViewerApp {
                     self.panel.recent.insert(0, p);
                     self.panel.recent.truncate(MAX_RECENT);
                 }
+                self.panel.solver_failure = None;
                 self.message(false, format!("loaded {name}"));
             }
         }
     }
 
     /// Applies one user action: the single place where UI input becomes a change.
-    fn handle(&mut self, ctx: &egui::Context, action: Action) {
+    pub(super) fn handle(&mut self, ctx: &egui::Context, action: Action) {
         match action {
-            Action::Solver(c) => self.send(c),
-            Action::Remesh(size) => self.send(Command::Remesh(size)),
-            Action::SetMethod(m) => self.send(Command::SetMethod(m)),
-            Action::OpenDialog => {
-                let picked = rfd::FileDialog::new()
-                    .add_filter("Wavefront OBJ", &["obj"])
-                    .pick_file();
-                if let Some(p) = picked {
-                    self.handle(ctx, Action::Open(p));
-                }
-            }
+            Action::Solver(c) => self.solver.queue(c),
+            Action::Remesh(size) => self.solver.queue(Command::Remesh(size)),
+            Action::SetMethod(m) => self.solver.queue(Command::SetMethod(m)),
+            Action::OpenDialog => self.open_dialog(
+                ctx,
+                Request::new(Purpose::Open, ("Wavefront OBJ", "obj"), false),
+            ),
             Action::Open(p) => {
                 self.message(false, format!("opening {}", p.display()));
-                self.send(Command::LoadPath(p));
+                self.solver.queue(Command::LoadPath(p));
             }
             Action::OpenBuiltin(name) => match Scene::builtin(&name, &LoadOptions::default()) {
-                Ok(s) => self.send(Command::LoadScene(Box::new(s))),
+                Ok(s) => self.solver.queue(Command::LoadScene(Box::new(s))),
                 Err(e) => self.message(true, e.to_string()),
             },
             Action::ClearRecent => self.panel.recent.clear(),
@@ -311,41 +263,31 @@ impl ViewerApp {
             }
             Action::SaveMtlAs => {
                 if let Some(s) = self.snapshot.clone() {
-                    let mut dialog = rfd::FileDialog::new().add_filter("MTL", &["mtl"]);
-                    if let Some(dir) = s.scene_source.as_deref().and_then(Path::parent) {
-                        dialog = dialog.set_directory(dir);
-                    }
-                    if let Some(p) = dialog
-                        .set_file_name(format!("{}.mtl", s.scene_name))
-                        .save_file()
-                    {
-                        self.save_mtl(&s, &p);
-                    }
+                    let mut r = Request::new(Purpose::SaveMtlAs, ("MTL", "mtl"), true);
+                    r.directory = s
+                        .scene_source
+                        .as_deref()
+                        .and_then(Path::parent)
+                        .map(Path::to_path_buf);
+                    r.file_name = Some(format!("{}.mtl", s.scene_name));
+                    self.open_dialog(ctx, r);
                 }
             }
             Action::ResetEdits => {
-                self.send(Command::ResetMaterials);
+                self.solver.queue(Command::ResetMaterials);
                 self.resync_editor_after = Some(self.snapshot.as_ref().map_or(0, |s| s.seq));
             }
             Action::ExportPly => {
                 if let Some(s) = self.snapshot.clone() {
-                    let picked = rfd::FileDialog::new()
-                        .add_filter("PLY", &["ply"])
-                        .set_file_name(format!("{}.ply", s.scene_name))
-                        .save_file();
-                    if let Some(p) = picked {
-                        self.export_ply(&s, &p);
-                    }
+                    let mut r = Request::new(Purpose::ExportPly, ("PLY", "ply"), true);
+                    r.file_name = Some(format!("{}.ply", s.scene_name));
+                    self.open_dialog(ctx, r);
                 }
             }
             Action::ExportPng => {
-                let picked = rfd::FileDialog::new()
-                    .add_filter("PNG", &["png"])
-                    .set_file_name("viewport.png")
-                    .save_file();
-                if let Some(p) = picked {
-                    self.request_viewport_png(ctx, p);
-                }
+                let mut r = Request::new(Purpose::ExportPng, ("PNG", "png"), true);
+                r.file_name = Some("viewport.png".into());
+                self.open_dialog(ctx, r);
             }
             Action::FrameScene => {
                 if let (Some(c), Some(s)) = (self.camera.as_mut(), &self.snapshot) {
@@ -367,22 +309,49 @@ impl ViewerApp {
                 self.panel.editor = None;
             }
             Action::Edit { material, kd, ke } => {
-                self.pending_edits.push(PendingEdit {
-                    sent: Instant::now(),
-                    material,
-                    kd,
-                    ke,
-                });
-                if self.pending_edits.len() > 64 {
-                    self.pending_edits.remove(0);
-                }
-                self.send(Command::SetMaterial {
+                self.edit_latency.sent(material, kd, ke);
+                self.solver.queue(Command::SetMaterial {
                     material: crate::scene::MaterialId(material),
                     reflectance: kd,
                     emission: ke,
                 });
             }
             Action::Quit => ctx.send_viewport_cmd(egui::ViewportCommand::Close),
+        }
+    }
+
+    fn open_dialog(&mut self, ctx: &egui::Context, request: Request) {
+        let c = ctx.clone();
+        if let Err(e) = self.dialogs.open(request, move || c.request_repaint()) {
+            self.message(true, e);
+        }
+    }
+
+    /// Acts on a dialog's answer: the path goes where the dialog was opened for (the
+    /// snapshot then on screen is the one saved or exported).
+    fn finish_dialog(&mut self, ctx: &egui::Context) {
+        let Some(outcome) = self.dialogs.poll() else {
+            return;
+        };
+        match outcome {
+            Outcome::Chosen(purpose, p) => match purpose {
+                Purpose::Open => self.handle(ctx, Action::Open(p)),
+                Purpose::SaveMtlAs => {
+                    if let Some(s) = self.snapshot.clone() {
+                        self.save_mtl(&s, &p);
+                    }
+                }
+                Purpose::ExportPly => {
+                    if let Some(s) = self.snapshot.clone() {
+                        self.export_ply(&s, &p);
+                    }
+                }
+                Purpose::ExportPng => self.request_viewport_png(ctx, p),
+            },
+            Outcome::Cancelled(_) => {}
+            Outcome::Failed(purpose) => {
+                self.message(true, format!("the file dialog ({purpose:?}) failed"));
+            }
         }
     }
 
@@ -423,295 +392,10 @@ impl ViewerApp {
             return;
         };
         let crop = image.region(&rect, Some(ctx.pixels_per_point()));
-        let rgba: Vec<u8> = crop.pixels.iter().flat_map(|c| c.to_array()).collect();
-        match export::write_png(&path, crop.size[0] as u32, crop.size[1] as u32, &rgba) {
+        match export::write_color_image(&path, &crop) {
             Ok(()) => self.message(false, format!("saved {}", path.display())),
             Err(e) => self.message(true, e.to_string()),
         }
-    }
-
-    /// Scripted edits, once enough shots are on screen.
-    fn run_edits(&mut self, ctx: &egui::Context) {
-        if self.edits_sent || self.auto.edits.is_empty() {
-            return;
-        }
-        let Some(s) = self.snapshot.clone() else {
-            return;
-        };
-        if s.stats.shots < self.auto.edit_after_shots && !s.stats.converged {
-            return;
-        }
-        self.edits_sent = true;
-        for spec in self.auto.edits.clone() {
-            let material = match &spec.target {
-                EditTarget::Material(name) => {
-                    let m = s.materials.iter().position(|m| m.name == *name);
-                    // Show the edit panel: select a patch of that material.
-                    if self.panel.selection.is_none()
-                        && let Some(m) = m
-                    {
-                        self.panel.selection = s
-                            .geometry
-                            .patch_material
-                            .iter()
-                            .position(|&p| p as usize == m)
-                            .map(|p| p as u32);
-                    }
-                    m.map(|i| i as u32)
-                }
-                EditTarget::Patch(p) => {
-                    let m = s.geometry.patch_material.get(*p as usize).copied();
-                    if m.is_some() {
-                        self.panel.selection = Some(*p);
-                        self.panel.editor = None;
-                    }
-                    m
-                }
-            };
-            let Some(material) = material else {
-                let text = format!(
-                    "--edit: no {} in {} (materials: {})",
-                    match &spec.target {
-                        EditTarget::Material(n) => format!("material '{n}'"),
-                        EditTarget::Patch(p) =>
-                            format!("patch #{p} ({} patches)", s.geometry.patches),
-                    },
-                    s.scene_name,
-                    s.materials
-                        .iter()
-                        .map(|m| m.name.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                );
-                self.fail(ctx, text);
-                return;
-            };
-            let m = &s.materials[material as usize];
-            let kd = spec.kd.unwrap_or(m.reflectance.to_array());
-            let ke = spec.ke.unwrap_or(m.emission.to_array());
-            if kd.iter().any(|&x| x > crate::scene::MAX_REFLECTANCE) {
-                self.fail(
-                    ctx,
-                    format!("--edit: kd must be <= {}", crate::scene::MAX_REFLECTANCE),
-                );
-                return;
-            }
-            self.handle(ctx, Action::Edit { material, kd, ke });
-        }
-    }
-
-    /// Scripted screenshot: wait for the condition, capture, save, close.
-    fn run_screenshot(&mut self, ctx: &egui::Context) {
-        let Some(plan) = self.auto.screenshot.clone() else {
-            return;
-        };
-        ctx.request_repaint();
-        let since_open = self.first_frame.map_or(Duration::ZERO, |t| t.elapsed());
-        if !matches!(self.shot_state, ShotState::Done) && since_open > plan.timeout {
-            let shots = self.snapshot.as_ref().map_or(0, |s| s.stats.shots);
-            self.fail(
-                ctx,
-                format!(
-                    "screenshot not taken within {:.0} s ({shots} shots so far)",
-                    plan.timeout.as_secs_f64()
-                ),
-            );
-            return;
-        }
-        match self.shot_state {
-            ShotState::Waiting => {
-                let Some(s) = &self.snapshot else { return };
-                let edits_done = self.auto.edits.is_empty()
-                    || (self.edits_sent && self.pending_edits.is_empty());
-                let ready = edits_done
-                    && match plan.when {
-                        ScreenshotWhen::Shots(n) => {
-                            s.stats.shots >= n || s.stats.converged || s.stats.limit_reached
-                        }
-                        ScreenshotWhen::Seconds(t) => since_open.as_secs_f64() >= t,
-                        ScreenshotWhen::Converged => s.stats.converged,
-                    };
-                if ready {
-                    self.shot_state = ShotState::Ready(0);
-                }
-            }
-            ShotState::Ready(k) if k < 2 => self.shot_state = ShotState::Ready(k + 1),
-            ShotState::Ready(_) => {
-                let slot = self.screenshot_image.clone();
-                let c = ctx.clone();
-                ctx.request_screenshot(move |image| {
-                    slot.publish(image);
-                    c.request_repaint();
-                });
-                self.shot_state = ShotState::Requested(Instant::now());
-            }
-            ShotState::Requested(at) => {
-                if let Some(image) = self.screenshot_image.take() {
-                    let rgba: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_array()).collect();
-                    let saved = export::write_png(
-                        &plan.path,
-                        image.size[0] as u32,
-                        image.size[1] as u32,
-                        &rgba,
-                    );
-                    if let Some(p) = self.auto.viewport_png.clone() {
-                        let crop = image.region(&self.viewport_rect, Some(ctx.pixels_per_point()));
-                        let rgba: Vec<u8> = crop.pixels.iter().flat_map(|c| c.to_array()).collect();
-                        if let Err(e) =
-                            export::write_png(&p, crop.size[0] as u32, crop.size[1] as u32, &rgba)
-                        {
-                            self.fail(ctx, e.to_string());
-                            return;
-                        }
-                    }
-                    if let (Some(p), Some(s)) =
-                        (self.auto.export_ply.clone(), self.snapshot.clone())
-                    {
-                        let bytes = export::ply_bytes(
-                            &s,
-                            self.panel.view.ambient,
-                            self.panel.view.exposure(),
-                        );
-                        if let Err(e) = export::atomic_write(&p, &bytes) {
-                            self.fail(ctx, e.to_string());
-                            return;
-                        }
-                    }
-                    match saved {
-                        Ok(()) => {
-                            let s = self.snapshot.as_ref();
-                            eprintln!(
-                                "saved {} ({}x{} px, {} shots, {} elements)",
-                                plan.path.display(),
-                                image.size[0],
-                                image.size[1],
-                                s.map_or(0, |s| s.stats.shots),
-                                s.map_or(0, |s| s.stats.elements)
-                            );
-                            self.shot_state = ShotState::Done;
-                            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
-                        }
-                        Err(e) => self.fail(ctx, e.to_string()),
-                    }
-                } else if at.elapsed() > Duration::from_secs(20) {
-                    self.fail(ctx, "the screenshot never arrived".into());
-                }
-            }
-            ShotState::Done => {}
-        }
-    }
-
-    fn viewport(&mut self, ui: &mut egui::Ui, actions: &mut Vec<Action>) {
-        let rect = ui.available_rect_before_wrap();
-        self.viewport_rect = rect;
-        let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
-        let Some(snap) = self.snapshot.clone() else {
-            ui.painter().text(
-                rect.center(),
-                egui::Align2::CENTER_CENTER,
-                "building the mesh…",
-                egui::FontId::proportional(18.0),
-                egui::Color32::GRAY,
-            );
-            return;
-        };
-        let Some(camera) = self.camera.as_mut() else {
-            return;
-        };
-        // Camera: drag = orbit, right/middle drag or shift+drag = pan, wheel = zoom.
-        let shift = ui.input(|i| i.modifiers.shift);
-        let delta = response.drag_delta();
-        if response.dragged_by(egui::PointerButton::Primary) && !shift {
-            camera.orbit(delta.x as f64, delta.y as f64);
-        } else if response.dragged_by(egui::PointerButton::Secondary)
-            || response.dragged_by(egui::PointerButton::Middle)
-            || (response.dragged_by(egui::PointerButton::Primary) && shift)
-        {
-            camera.pan(delta.x as f64, delta.y as f64, rect.height() as f64);
-        }
-        if response.hovered() {
-            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
-            if scroll != 0.0 {
-                camera.zoom(scroll as f64);
-            }
-        }
-        if response.double_clicked() {
-            actions.push(Action::FrameScene);
-        } else if response.clicked()
-            && let Some(pos) = response.interact_pointer_pos()
-        {
-            let local = pos - rect.min;
-            let (o, d) = camera.ray(
-                local.x as f64,
-                local.y as f64,
-                rect.width() as f64,
-                rect.height() as f64,
-            );
-            actions.push(Action::Select(snap.geometry.pick(o, d).map(|p| p.0)));
-        }
-        let view = &self.panel.view;
-        let ambient = if view.ambient { snap.ambient } else { [0.0; 3] };
-        let mut flags = 0;
-        if view.highlight_shooter {
-            flags |= FLAG_SHOOTER;
-        }
-        if self.panel.selection.is_some() {
-            flags |= FLAG_SELECTION;
-        }
-        let shooter = snap.stats.last_shooter.unwrap_or(NO_PATCH);
-        let uniforms = Uniforms {
-            view_proj: camera
-                .view_proj(rect.aspect_ratio() as f64)
-                .to_cols_array_2d(),
-            ambient_exposure: [ambient[0], ambient[1], ambient[2], view.exposure()],
-            ids: [shooter, self.panel.selection.unwrap_or(NO_PATCH), flags, 0],
-            element_line_color: [0.0, 0.0, 0.0, 0.45],
-            patch_line_color: [1.0, 1.0, 1.0, 0.8],
-            params: [1e-3, 0.0, 0.0, 0.0],
-        };
-        ui.painter().add(egui_wgpu::Callback::new_paint_callback(
-            rect,
-            ViewportCallback {
-                snapshot: Some(snap.clone()),
-                uniforms,
-                overlays: Overlays {
-                    element_edges: view.element_edges,
-                    patch_outlines: view.patch_outlines,
-                },
-            },
-        ));
-        // Hovered files: a hint.
-        if ui.input(|i| !i.raw.hovered_files.is_empty()) {
-            ui.painter().text(
-                rect.center(),
-                egui::Align2::CENTER_CENTER,
-                "drop an .obj to open it",
-                egui::FontId::proportional(22.0),
-                egui::Color32::WHITE,
-            );
-        }
-    }
-
-    fn keys(&mut self, ctx: &egui::Context, actions: &mut Vec<Action>) {
-        if ctx.egui_wants_keyboard_input() {
-            return;
-        }
-        let playing = self.snapshot.as_ref().is_some_and(|s| s.stats.playing);
-        ctx.input(|i| {
-            if i.key_pressed(egui::Key::F) {
-                actions.push(Action::FrameScene);
-            }
-            if i.key_pressed(egui::Key::Home) {
-                actions.push(Action::ResetView);
-            }
-            if i.key_pressed(egui::Key::Space) {
-                actions.push(Action::Solver(if playing {
-                    Command::Pause
-                } else {
-                    Command::Play
-                }));
-            }
-        });
     }
 }
 
@@ -740,10 +424,11 @@ impl eframe::App for ViewerApp {
             }
         }
         self.run_edits(ctx);
-        self.flush();
-        if !self.outbox.is_empty() {
+        self.solver.flush();
+        if self.solver.queued() > 0 {
             ctx.request_repaint();
         }
+        self.finish_dialog(ctx);
         self.finish_viewport_png(ctx);
     }
 

@@ -10,6 +10,12 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
+use eframe::egui;
+
+use super::app::ViewerApp;
+use super::export;
+use super::panels::Action;
+
 /// When to take the screenshot.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ScreenshotWhen {
@@ -121,111 +127,6 @@ pub struct Automation {
     pub export_ply: Option<PathBuf>,
 }
 
-/// One frame of the frame log.
-#[derive(Clone, Copy, Debug)]
-pub struct FrameRow {
-    /// Since the window's first frame.
-    pub t_ms: f64,
-    /// Since the previous frame started.
-    pub interval_ms: f64,
-    /// Time spent in `App::logic` + `App::ui` this frame.
-    pub ui_ms: f64,
-    /// eframe's CPU time of the previous frame (ui, tessellation, painting, presenting).
-    pub cpu_ms: f64,
-    pub shots: usize,
-    pub elements: usize,
-    pub new_snapshot: bool,
-}
-
-/// Timings gathered by the app for `--frame-log`.
-#[derive(Debug, Default)]
-pub struct FrameLog {
-    pub rows: Vec<FrameRow>,
-    /// Process start → first frame.
-    pub first_frame_ms: Option<f64>,
-    /// First frame → first frame that draws a solution (emitters lit).
-    pub first_light_ms: Option<f64>,
-    /// First frame → first frame that draws a solution after one shot.
-    pub first_shot_ms: Option<f64>,
-    /// Edit sent → first frame that draws it.
-    pub edit_latency_ms: Vec<f64>,
-    /// Edit sent → the solver thread published a snapshot with it.
-    pub edit_publish_ms: Vec<f64>,
-}
-
-fn percentile(values: &[f64], p: f64) -> f64 {
-    if values.is_empty() {
-        return f64::NAN;
-    }
-    let mut v = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    let k = ((p / 100.0) * (v.len() - 1) as f64).round() as usize;
-    v[k.min(v.len() - 1)]
-}
-
-impl FrameLog {
-    /// CSV rows then `#` summary lines.
-    pub fn to_text(&self) -> String {
-        let mut s =
-            String::from("frame,t_ms,interval_ms,ui_ms,cpu_ms,shots,elements,new_snapshot\n");
-        for (i, r) in self.rows.iter().enumerate() {
-            s.push_str(&format!(
-                "{i},{:.3},{:.3},{:.3},{:.3},{},{},{}\n",
-                r.t_ms, r.interval_ms, r.ui_ms, r.cpu_ms, r.shots, r.elements, r.new_snapshot as u8
-            ));
-        }
-        s.push_str(&self.summary());
-        s
-    }
-
-    /// Summary lines (also printed to stderr at exit).
-    pub fn summary(&self) -> String {
-        // Frames while the solver was running (shots increasing), the first 10 skipped
-        // (start-up: shader compilation, first uploads).
-        let solving: Vec<&FrameRow> = self
-            .rows
-            .windows(2)
-            .skip(10)
-            .filter(|w| w[1].shots > w[0].shots)
-            .map(|w| &w[1])
-            .collect();
-        let col = |f: fn(&FrameRow) -> f64| solving.iter().map(|r| f(r)).collect::<Vec<f64>>();
-        let ui = col(|r| r.ui_ms);
-        let cpu = col(|r| r.cpu_ms);
-        let interval = col(|r| r.interval_ms);
-        let opt = |x: Option<f64>| x.map_or("n/a".to_string(), |v| format!("{v:.1}"));
-        let mut s = format!(
-            "# frames {} (while solving, after the first 10: {})\n",
-            self.rows.len(),
-            solving.len()
-        );
-        s.push_str(&format!(
-            "# ui_ms p50 {:.2} p99 {:.2} max {:.2}\n# cpu_ms p50 {:.2} p99 {:.2} max {:.2}\n# interval_ms p50 {:.2} p99 {:.2} max {:.2}\n",
-            percentile(&ui, 50.0),
-            percentile(&ui, 99.0),
-            percentile(&ui, 100.0),
-            percentile(&cpu, 50.0),
-            percentile(&cpu, 99.0),
-            percentile(&cpu, 100.0),
-            percentile(&interval, 50.0),
-            percentile(&interval, 99.0),
-            percentile(&interval, 100.0),
-        ));
-        s.push_str(&format!(
-            "# process start -> first frame ms {}\n# first frame -> emitters drawn ms {}\n# first frame -> first shot drawn ms {}\n",
-            opt(self.first_frame_ms),
-            opt(self.first_light_ms),
-            opt(self.first_shot_ms)
-        ));
-        for (l, p) in self.edit_latency_ms.iter().zip(&self.edit_publish_ms) {
-            s.push_str(&format!(
-                "# edit sent -> published by the solver thread ms {p:.1}, -> drawn ms {l:.1}\n"
-            ));
-        }
-        s
-    }
-}
-
 /// Progress of a scripted screenshot.
 #[derive(Debug, Default)]
 pub enum ShotState {
@@ -235,6 +136,170 @@ pub enum ShotState {
     Ready(u32),
     Requested(Instant),
     Done,
+}
+
+impl ViewerApp {
+    /// Scripted edits, once enough shots are on screen.
+    pub(super) fn run_edits(&mut self, ctx: &egui::Context) {
+        if self.edits_sent || self.auto.edits.is_empty() {
+            return;
+        }
+        let Some(s) = self.snapshot.clone() else {
+            return;
+        };
+        if s.stats.shots < self.auto.edit_after_shots && !s.stats.converged {
+            return;
+        }
+        self.edits_sent = true;
+        for spec in self.auto.edits.clone() {
+            let material = match &spec.target {
+                EditTarget::Material(name) => {
+                    let m = s.materials.iter().position(|m| m.name == *name);
+                    // Show the edit panel: select a patch of that material.
+                    if self.panel.selection.is_none()
+                        && let Some(m) = m
+                    {
+                        self.panel.selection = s
+                            .geometry
+                            .patch_material
+                            .iter()
+                            .position(|&p| p as usize == m)
+                            .map(|p| p as u32);
+                    }
+                    m.map(|i| i as u32)
+                }
+                EditTarget::Patch(p) => {
+                    let m = s.geometry.patch_material.get(*p as usize).copied();
+                    if m.is_some() {
+                        self.panel.selection = Some(*p);
+                        self.panel.editor = None;
+                    }
+                    m
+                }
+            };
+            let Some(material) = material else {
+                let text = format!(
+                    "--edit: no {} in {} (materials: {})",
+                    match &spec.target {
+                        EditTarget::Material(n) => format!("material '{n}'"),
+                        EditTarget::Patch(p) =>
+                            format!("patch #{p} ({} patches)", s.geometry.patches),
+                    },
+                    s.scene_name,
+                    s.materials
+                        .iter()
+                        .map(|m| m.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+                self.fail(ctx, text);
+                return;
+            };
+            let m = &s.materials[material as usize];
+            let kd = spec.kd.unwrap_or(m.reflectance.to_array());
+            let ke = spec.ke.unwrap_or(m.emission.to_array());
+            if kd.iter().any(|&x| x > crate::scene::MAX_REFLECTANCE) {
+                self.fail(
+                    ctx,
+                    format!("--edit: kd must be <= {}", crate::scene::MAX_REFLECTANCE),
+                );
+                return;
+            }
+            self.handle(ctx, Action::Edit { material, kd, ke });
+        }
+    }
+
+    /// Scripted screenshot: wait for the condition, capture, save, close.
+    pub(super) fn run_screenshot(&mut self, ctx: &egui::Context) {
+        let Some(plan) = self.auto.screenshot.clone() else {
+            return;
+        };
+        ctx.request_repaint();
+        let since_open = self.first_frame.map_or(Duration::ZERO, |t| t.elapsed());
+        if !matches!(self.shot_state, ShotState::Done) && since_open > plan.timeout {
+            let shots = self.snapshot.as_ref().map_or(0, |s| s.stats.shots);
+            self.fail(
+                ctx,
+                format!(
+                    "screenshot not taken within {:.0} s ({shots} shots so far)",
+                    plan.timeout.as_secs_f64()
+                ),
+            );
+            return;
+        }
+        match self.shot_state {
+            ShotState::Waiting => {
+                let Some(s) = &self.snapshot else { return };
+                let edits_done =
+                    self.auto.edits.is_empty() || (self.edits_sent && self.edit_latency.is_empty());
+                let ready = edits_done
+                    && match plan.when {
+                        ScreenshotWhen::Shots(n) => {
+                            s.stats.shots >= n || s.stats.converged || s.stats.limit_reached
+                        }
+                        ScreenshotWhen::Seconds(t) => since_open.as_secs_f64() >= t,
+                        ScreenshotWhen::Converged => s.stats.converged,
+                    };
+                if ready {
+                    self.shot_state = ShotState::Ready(0);
+                }
+            }
+            ShotState::Ready(k) if k < 2 => self.shot_state = ShotState::Ready(k + 1),
+            ShotState::Ready(_) => {
+                let slot = self.screenshot_image.clone();
+                let c = ctx.clone();
+                ctx.request_screenshot(move |image| {
+                    slot.publish(image);
+                    c.request_repaint();
+                });
+                self.shot_state = ShotState::Requested(Instant::now());
+            }
+            ShotState::Requested(at) => {
+                if let Some(image) = self.screenshot_image.take() {
+                    let saved = export::write_color_image(&plan.path, &image);
+                    if let Some(p) = self.auto.viewport_png.clone() {
+                        let crop = image.region(&self.viewport_rect, Some(ctx.pixels_per_point()));
+                        if let Err(e) = export::write_color_image(&p, &crop) {
+                            self.fail(ctx, e.to_string());
+                            return;
+                        }
+                    }
+                    if let (Some(p), Some(s)) =
+                        (self.auto.export_ply.clone(), self.snapshot.clone())
+                    {
+                        let bytes = export::ply_bytes(
+                            &s,
+                            self.panel.view.ambient,
+                            self.panel.view.exposure(),
+                        );
+                        if let Err(e) = export::atomic_write(&p, &bytes) {
+                            self.fail(ctx, e.to_string());
+                            return;
+                        }
+                    }
+                    match saved {
+                        Ok(()) => {
+                            let s = self.snapshot.as_ref();
+                            eprintln!(
+                                "saved {} ({}x{} px, {} shots, {} elements)",
+                                plan.path.display(),
+                                image.size[0],
+                                image.size[1],
+                                s.map_or(0, |s| s.stats.shots),
+                                s.map_or(0, |s| s.stats.elements)
+                            );
+                            self.shot_state = ShotState::Done;
+                            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+                        }
+                        Err(e) => self.fail(ctx, e.to_string()),
+                    }
+                } else if at.elapsed() > Duration::from_secs(20) {
+                    self.fail(ctx, "the screenshot never arrived".into());
+                }
+            }
+            ShotState::Done => {}
+        }
+    }
 }
 
 #[cfg(test)]
@@ -266,13 +331,5 @@ mod tests {
         ] {
             assert!(EditSpec::parse(bad).is_err(), "{bad}");
         }
-    }
-
-    #[test]
-    fn percentiles() {
-        let v: Vec<f64> = (1..=100).map(f64::from).collect();
-        assert_eq!(percentile(&v, 50.0), 51.0);
-        assert_eq!(percentile(&v, 99.0), 99.0);
-        assert!(percentile(&[], 50.0).is_nan());
     }
 }

@@ -48,15 +48,10 @@ pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
     result.map_err(io)
 }
 
-/// Linear radiance to an 8-bit sRGB value after exposure (the viewport's own transfer).
+/// Linear radiance to an 8-bit sRGB value after exposure (the viewport's own transfer;
+/// the encoding is the renderer's [`crate::render::image::srgb8`]).
 pub fn srgb8(linear: f32, exposure: f32) -> u8 {
-    let x = (linear * exposure).clamp(0.0, 1.0);
-    let s = if x <= 0.003_130_8 {
-        x * 12.92
-    } else {
-        1.055 * x.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0 + 0.5).clamp(0.0, 255.0) as u8
+    crate::render::image::srgb8(f64::from(linear) * f64::from(exposure))
 }
 
 /// The solution as binary PLY: display vertices with float radiance (`radiance_r/g/b`,
@@ -65,7 +60,7 @@ pub fn srgb8(linear: f32, exposure: f32) -> u8 {
 pub fn ply_bytes(snapshot: &Snapshot, with_ambient: bool, exposure: f32) -> Vec<u8> {
     let g = &snapshot.geometry;
     let n = g
-        .corner_vertex
+        .source_vertex
         .iter()
         .map(|&v| v as usize + 1)
         .max()
@@ -77,12 +72,13 @@ pub fn ply_bytes(snapshot: &Snapshot, with_ambient: bool, exposure: f32) -> Vec<
     } else {
         [0.0; 3]
     };
-    for (k, &v) in g.corner_vertex.iter().enumerate() {
+    // Drawn vertices that share a display vertex (patch boundaries) hold the same values.
+    for (k, &v) in g.source_vertex.iter().enumerate() {
         position[v as usize] = g.positions[k];
         let (b, rho) = (snapshot.radiance[k], snapshot.reflectance[k]);
         radiance[v as usize] = [0, 1, 2].map(|c| b[c] + rho[c] * ambient[c]);
     }
-    let triangles = g.corner_vertex.len() / 3;
+    let triangles = g.indices.len() / 3;
     let mut out = format!(
         "ply\nformat binary_little_endian 1.0\ncomment nusselt radiosity solution: {}, {} shots, radiance in W m^-2 sr^-1{}\ncomment red/green/blue are sRGB after exposure x{exposure}\nelement vertex {n}\nproperty float x\nproperty float y\nproperty float z\nproperty float radiance_r\nproperty float radiance_g\nproperty float radiance_b\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nelement face {triangles}\nproperty list uchar uint vertex_indices\nend_header\n",
         snapshot.scene_name,
@@ -103,10 +99,10 @@ pub fn ply_bytes(snapshot: &Snapshot, with_ambient: bool, exposure: f32) -> Vec<
             out.push(srgb8(*c, exposure));
         }
     }
-    for t in g.corner_vertex.chunks_exact(3) {
+    for t in g.indices.chunks_exact(3) {
         out.push(3);
-        for v in t {
-            out.extend_from_slice(&v.to_le_bytes());
+        for &d in t {
+            out.extend_from_slice(&g.source_vertex[d as usize].to_le_bytes());
         }
     }
     out
@@ -165,6 +161,12 @@ pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()
             message: e.to_string(),
         })?;
     atomic_write(path, &bytes)
+}
+
+/// Writes an egui image (a window screenshot, or a region of one) as PNG, atomically.
+pub fn write_color_image(path: &Path, image: &eframe::egui::ColorImage) -> Result<(), ExportError> {
+    let rgba: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_array()).collect();
+    write_png(path, image.size[0] as u32, image.size[1] as u32, &rgba)
 }
 
 use image::ImageEncoder as _;

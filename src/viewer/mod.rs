@@ -6,22 +6,27 @@
 //!   [`snapshot::Snapshot`]; the thread wakes the UI when it publishes.
 //! - [`render`]: wgpu pipelines in egui-wgpu's callback resources (egui's `custom3d_wgpu`
 //!   pattern); per-vertex radiance, exposure and linear→sRGB in `shaders/viewport.wgsl`.
-//! - [`app`]: the eframe app: side panel ([`panels`]), viewport with orbit camera
-//!   ([`camera`]), and every user action funnelled through `App::handle`.
-//! - [`automation`]: `--screenshot`, `--frame-log`, `--edit`: reproducible runs for
-//!   screenshots, tests and the latency figures in docs/VIEWER.md.
-//! - [`export`]: PLY, MTL and PNG files, written atomically.
+//! - [`app`]: the eframe app: side panel ([`panels`]), viewport (`viewport.rs`) with orbit
+//!   camera ([`camera`]), and every user action funnelled through `ViewerApp::handle`.
+//! - [`automation`]: `--screenshot`, `--edit`: reproducible runs for screenshots and
+//!   tests; [`frame_log`]: `--frame-log`, the timings and latency figures in
+//!   docs/VIEWER.md.
+//! - [`export`]: PLY, MTL and PNG files, written atomically; [`dialog`]: rfd file dialogs
+//!   on their own thread, so the viewport keeps drawing while one is open.
 //!
 //! Nothing here is used by the core; the core never imports egui, eframe or wgpu.
 
 pub mod app;
 pub mod automation;
 pub mod camera;
+pub mod dialog;
 pub mod export;
+pub mod frame_log;
 mod panels;
 pub mod render;
 pub mod snapshot;
 pub mod solver_thread;
+mod viewport;
 
 use std::sync::{Arc, OnceLock};
 

@@ -96,6 +96,8 @@ pub struct PanelState {
     pub selection: Option<u32>,
     pub recent: Vec<PathBuf>,
     pub messages: Vec<(bool, String)>,
+    /// The solver panicked (the image is the last one it published).
+    pub solver_failure: Option<String>,
     pub show_plot: bool,
 }
 
@@ -170,7 +172,7 @@ pub fn side_panel(
         display_section(ui, state, actions);
         ui.separator();
         if let Some(s) = snap {
-            stats_section(ui, s);
+            stats_section(ui, s, state.solver_failure.is_some());
             if state.show_plot {
                 plot_section(ui, s);
             }
@@ -289,7 +291,7 @@ fn display_section(ui: &mut egui::Ui, state: &mut PanelState, actions: &mut Vec<
     });
 }
 
-fn stats_section(ui: &mut egui::Ui, s: &Snapshot) {
+fn stats_section(ui: &mut egui::Ui, s: &Snapshot, failed: bool) {
     let st = &s.stats;
     egui::Grid::new("stats").num_columns(2).show(ui, |ui| {
         let row = |ui: &mut egui::Ui, k: &str, v: String| {
@@ -312,7 +314,9 @@ fn stats_section(ui: &mut egui::Ui, s: &Snapshot) {
             "ambient",
             format!("{:.4} {:.4} {:.4}", a[0], a[1], a[2]),
         );
-        let status = if st.converged {
+        let status = if failed {
+            "solver failed (see messages); last image kept"
+        } else if st.converged {
             "converged"
         } else if st.limit_reached {
             "stopped at shot limit"

@@ -48,8 +48,11 @@ struct MeshBuffers {
     reflectance_rev: u64,
     radiance_seq: u64,
     vertex_count: u32,
-    /// position (12 bytes) + patch id (4 bytes) per corner.
+    index_count: u32,
+    /// position (12 bytes) + patch id (4 bytes) per drawn vertex.
     positions: wgpu::Buffer,
+    /// Three drawn vertices per triangle (u32).
+    indices: wgpu::Buffer,
     reflectance: wgpu::Buffer,
     radiance: wgpu::Buffer,
     element_lines: wgpu::Buffer,
@@ -246,6 +249,15 @@ impl ViewportResources {
             }
             let positions = Self::vertex_buffer(device, "nusselt positions", n * 16);
             queue.write_buffer(&positions, 0, &packed);
+            let indices = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("nusselt indices"),
+                size: (g.indices.len() as u64 * 4)
+                    .max(16)
+                    .next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT),
+                usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            queue.write_buffer(&indices, 0, bytemuck::cast_slice(&g.indices));
             let element_lines = Self::vertex_buffer(
                 device,
                 "nusselt element lines",
@@ -258,13 +270,18 @@ impl ViewportResources {
                 g.patch_lines.len() as u64 * 12,
             );
             queue.write_buffer(&patch_lines, 0, bytemuck::cast_slice(&g.patch_lines));
-            bytes += packed.len() + g.element_lines.len() * 12 + g.patch_lines.len() * 12;
+            bytes += packed.len()
+                + g.indices.len() * 4
+                + g.element_lines.len() * 12
+                + g.patch_lines.len() * 12;
             self.mesh = Some(MeshBuffers {
                 geometry_id: g.id,
                 reflectance_rev: u64::MAX,
                 radiance_seq: u64::MAX,
                 vertex_count: g.positions.len() as u32,
+                index_count: g.indices.len() as u32,
                 positions,
+                indices,
                 reflectance: Self::vertex_buffer(device, "nusselt reflectance", n * 12),
                 radiance: Self::vertex_buffer(device, "nusselt radiance", n * 12),
                 element_lines,
@@ -296,7 +313,8 @@ impl ViewportResources {
         pass.set_vertex_buffer(0, m.positions.slice(..));
         pass.set_vertex_buffer(1, m.reflectance.slice(..));
         pass.set_vertex_buffer(2, m.radiance.slice(..));
-        pass.draw(0..m.vertex_count, 0..1);
+        pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(0..m.index_count, 0, 0..1);
         if overlays.element_edges && m.element_line_count > 0 {
             pass.set_pipeline(&self.line_pipeline);
             pass.set_vertex_buffer(0, m.element_lines.slice(..));

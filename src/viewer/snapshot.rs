@@ -1,13 +1,17 @@
 //! What the solver thread publishes and the UI draws: GPU-ready arrays built off the UI
 //! thread, shared by `Arc` so that taking a snapshot never copies or waits.
 //!
-//! Triangles are *expanded* (three corners each, no index buffer) so every corner can carry
-//! its patch id as a flat attribute; the shader highlights the shooting and the selected
-//! patch with it. Radiance is stored without the ambient term together with the per-corner
-//! reflectance, so the ambient toggle is a uniform (`B + ρ·ambient`, exactly what
-//! [`ProgressiveSolver::vertex_radiance`]`(true)` gives, since per-vertex averaging is linear
-//! and a surface has one material).
+//! Drawn vertices are the mesh's display vertices, one per patch that uses them (a mesh
+//! vertex on a patch boundary is drawn once per patch), indexed by the display triangles.
+//! So every triangle's three vertices carry its patch id, which the shader reads as a flat
+//! attribute to highlight the shooting and the selected patch, while radiance is sent once
+//! per vertex instead of once per triangle corner (about 4× fewer bytes per snapshot; see
+//! docs/VIEWER.md). Radiance is stored without the ambient term together with the
+//! per-vertex reflectance, so the ambient toggle is a uniform (`B + ρ·ambient`, exactly
+//! what per-vertex averaging of `B + ρ·ambient` gives, since it is linear and a surface
+//! has one material).
 
+use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -25,12 +29,14 @@ use crate::solver::ProgressiveSolver;
 pub struct Geometry {
     /// Changes whenever the mesh does (new scene or re-mesh).
     pub id: u64,
-    /// Per triangle corner.
+    /// Per drawn vertex.
     pub positions: Vec<[f32; 3]>,
-    /// Patch id per triangle corner.
+    /// Patch id per drawn vertex.
     pub patch: Vec<u32>,
-    /// Display vertex of each triangle corner (to expand per-vertex values).
-    pub corner_vertex: Vec<u32>,
+    /// Mesh display vertex of each drawn vertex (to expand per-vertex values).
+    pub source_vertex: Vec<u32>,
+    /// Drawn vertices of the display triangles, three per triangle (the index buffer).
+    pub indices: Vec<u32>,
     /// Element edges as line-list endpoints.
     pub element_lines: Vec<[f32; 3]>,
     /// Patch outlines as line-list endpoints.
@@ -52,10 +58,12 @@ pub struct Geometry {
 
 impl Geometry {
     pub fn from_mesh(id: u64, mesh: &Mesh) -> Geometry {
-        let n = mesh.triangles.len() * 3;
+        let n = mesh.vertices.len();
         let mut positions = Vec::with_capacity(n);
         let mut patch = Vec::with_capacity(n);
-        let mut corner_vertex = Vec::with_capacity(n);
+        let mut source_vertex = Vec::with_capacity(n);
+        let mut indices = Vec::with_capacity(mesh.triangles.len() * 3);
+        let mut drawn: HashMap<(u32, u32), u32> = HashMap::with_capacity(n);
         let mut inputs = Vec::with_capacity(mesh.triangles.len());
         for (i, (t, e)) in mesh
             .triangles
@@ -65,9 +73,13 @@ impl Geometry {
         {
             let pid = mesh.elements[e.0 as usize].patch.0;
             for &v in t {
-                positions.push(mesh.vertices[v as usize].as_vec3().to_array());
-                patch.push(pid);
-                corner_vertex.push(v);
+                let d = *drawn.entry((v, pid)).or_insert_with(|| {
+                    positions.push(mesh.vertices[v as usize].as_vec3().to_array());
+                    patch.push(pid);
+                    source_vertex.push(v);
+                    source_vertex.len() as u32 - 1
+                });
+                indices.push(d);
             }
             inputs.push(TriangleInput {
                 vertices: t.map(|v| mesh.vertices[v as usize]),
@@ -97,7 +109,8 @@ impl Geometry {
             id,
             positions,
             patch,
-            corner_vertex,
+            source_vertex,
+            indices,
             element_lines,
             patch_lines,
             bvh: Bvh::build(&inputs),
@@ -112,9 +125,9 @@ impl Geometry {
         }
     }
 
-    /// Expands per-display-vertex values to per-corner values.
+    /// Per-display-vertex values to per-drawn-vertex values.
     pub fn expand(&self, per_vertex: &[Rgb]) -> Vec<[f32; 3]> {
-        self.corner_vertex
+        self.source_vertex
             .iter()
             .map(|&v| per_vertex[v as usize].as_vec3().to_array())
             .collect()
@@ -172,9 +185,9 @@ pub struct Snapshot {
     /// When the first snapshot after the latest material edit was published.
     pub edit_published: Option<std::time::Instant>,
     pub geometry: Arc<Geometry>,
-    /// Radiance per triangle corner, without the ambient term.
+    /// Radiance per drawn vertex, without the ambient term.
     pub radiance: Arc<Vec<[f32; 3]>>,
-    /// Reflectance per triangle corner.
+    /// Reflectance per drawn vertex.
     pub reflectance: Arc<Vec<[f32; 3]>>,
     /// Changes whenever `reflectance` does.
     pub reflectance_rev: u64,
@@ -194,8 +207,8 @@ pub struct Snapshot {
     pub method: FormFactorMethod,
 }
 
-/// Per-corner reflectance of the current materials.
-pub(crate) fn corner_reflectance(geometry: &Geometry, solver: &ProgressiveSolver) -> Vec<[f32; 3]> {
+/// Per-drawn-vertex reflectance of the current materials.
+pub(crate) fn vertex_reflectance(geometry: &Geometry, solver: &ProgressiveSolver) -> Vec<[f32; 3]> {
     let mats = &solver.scene().materials;
     geometry
         .patch
@@ -205,4 +218,54 @@ pub(crate) fn corner_reflectance(geometry: &Geometry, solver: &ProgressiveSolver
             mats[m].reflectance.as_vec3().to_array()
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{LoadOptions, Scene};
+
+    #[test]
+    fn drawn_vertices_are_indexed_and_flat_per_patch() {
+        let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+        // Patches of 2×2 elements: many vertices lie on patch boundaries.
+        let mesh = Mesh::build_with(&scene, 60.0, 120.0).expect("mesh");
+        let g = Geometry::from_mesh(1, &mesh);
+        assert_eq!(g.indices.len(), 3 * mesh.triangles.len());
+        assert_eq!(g.positions.len(), g.patch.len());
+        assert_eq!(g.positions.len(), g.source_vertex.len());
+        for (t, (tri, e)) in g
+            .indices
+            .chunks_exact(3)
+            .zip(mesh.triangles.iter().zip(&mesh.triangle_element))
+        {
+            let pid = mesh.elements[e.0 as usize].patch.0;
+            for (&d, &v) in t.iter().zip(tri) {
+                // The flat patch id is right whichever corner the GPU takes it from.
+                assert_eq!(g.patch[d as usize], pid);
+                assert_eq!(g.source_vertex[d as usize], v);
+                assert_eq!(
+                    g.positions[d as usize],
+                    mesh.vertices[v as usize].as_vec3().to_array()
+                );
+            }
+        }
+        // Each (vertex, patch) pair is drawn once: fewer vertices than corners, and at most
+        // one per pair.
+        let mut pairs: Vec<(u32, u32)> = g
+            .source_vertex
+            .iter()
+            .copied()
+            .zip(g.patch.iter().copied())
+            .collect();
+        pairs.sort_unstable();
+        pairs.dedup();
+        assert_eq!(pairs.len(), g.positions.len());
+        assert!(
+            g.positions.len() < g.indices.len() / 2,
+            "{} vertices, {} corners",
+            g.positions.len(),
+            g.indices.len()
+        );
+    }
 }

@@ -1,28 +1,10 @@
-//! The solver thread: it owns the [`ProgressiveSolver`]; the UI talks to it through a
-//! bounded command channel and reads a latest-wins [`Snapshot`].
-//!
-//! Why this shape (after rerun's viewer and egui's custom3d demo): the UI must never wait
-//! for a shot, which can take from microseconds (cached form-factor row) to a second (a new
-//! row on a fine mesh). So
-//! - commands go through a `sync_channel`; the UI uses `try_send` and keeps what did not
-//!   fit for the next frame, so it never blocks;
-//! - commands that change the problem (edits, re-mesh, reset, load, pause, quit) also raise
-//!   a cancel flag that [`ProgressiveSolver::shoot`] polls, so a long shot is abandoned
-//!   (leaving the solver untouched) and the command applies within milliseconds;
-//! - results are published by swapping an `Arc<Snapshot>` into a slot under a mutex held
-//!   only for the swap, never while shooting; the UI takes it when it draws;
-//! - every publish calls the waker (`egui::Context::request_repaint` in the viewer), so the
-//!   window redraws exactly when there is something new.
-//!
-//! Publishing is rate-limited (about 60 per second) because building a snapshot costs a
-//! pass over the mesh; the first state (emitters only) and the first shots are published
-//! at once so light shows up immediately.
+//! The solver thread's side: a [`Worker`] owns the [`ProgressiveSolver`], applies
+//! [`Command`]s, shoots while there is something to shoot, and publishes [`Snapshot`]s.
 
-use std::path::PathBuf;
+use std::panic::AssertUnwindSafe;
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TryRecvError, TrySendError};
-use std::sync::{Arc, Mutex, PoisonError};
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use crate::formfactor::FormFactorMethod;
@@ -31,276 +13,10 @@ use crate::mesh::PatchId;
 use crate::scene::{LoadOptions, Material, MaterialId, Rgb, Scene};
 use crate::solver::{ProgressiveSolver, SolverConfig};
 
-use super::snapshot::{Geometry, HistoryPoint, Snapshot, Stats, corner_reflectance};
+use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, Stats, vertex_reflectance};
+use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
 
-/// Capacity of the command channel.
-pub const COMMAND_CAPACITY: usize = 256;
-/// Most history points kept (older ones are thinned out by half when full).
-pub const HISTORY_CAPACITY: usize = 4096;
-/// Shortest time between two published snapshots while shooting.
-pub const PUBLISH_INTERVAL: Duration = Duration::from_millis(15);
-
-/// What the UI asks of the solver thread.
-#[derive(Debug)]
-pub enum Command {
-    Play,
-    Pause,
-    /// One shot, then pause.
-    Step,
-    /// Back to dark (materials as they are now).
-    Reset,
-    /// New element size; restarts from dark on the new mesh. The old snapshot stays
-    /// published until the new mesh is ready.
-    Remesh(f64),
-    /// Incremental edit (no restart).
-    SetMaterial {
-        material: MaterialId,
-        reflectance: [f64; 3],
-        emission: [f64; 3],
-    },
-    /// All materials back to how they were loaded (incrementally).
-    ResetMaterials,
-    /// Switch the form-factor method (restarts the solve).
-    SetMethod(FormFactorMethod),
-    /// Load an OBJ file; on error the current scene stays.
-    LoadPath(PathBuf),
-    /// Replace the scene with one loaded elsewhere.
-    LoadScene(Box<Scene>),
-    /// Stop shooting below this unshot fraction.
-    SetStopThreshold(f64),
-    Quit,
-}
-
-impl Command {
-    /// Whether a shot in progress should be abandoned for this command.
-    fn interrupts(&self) -> bool {
-        !matches!(self, Command::Play | Command::Step)
-    }
-}
-
-/// Notices from the solver thread (errors, loads); these must not be lost the way stale
-/// snapshots may be, so they have their own bounded channel.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Event {
-    Error(String),
-    Loaded {
-        name: String,
-        source: Option<PathBuf>,
-    },
-}
-
-/// A one-value mailbox: the writer replaces, the reader takes.
-#[derive(Debug)]
-pub struct Latest<T> {
-    slot: Mutex<Option<T>>,
-}
-
-impl<T> Default for Latest<T> {
-    fn default() -> Self {
-        Self {
-            slot: Mutex::new(None),
-        }
-    }
-}
-
-impl<T> Latest<T> {
-    pub fn publish(&self, value: T) {
-        // A panic elsewhere cannot leave an `Option` half-written: ignore poisoning.
-        *self.slot.lock().unwrap_or_else(PoisonError::into_inner) = Some(value);
-    }
-    pub fn take(&self) -> Option<T> {
-        self.slot
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .take()
-    }
-}
-
-/// Called after each publish (the viewer passes `request_repaint`).
-pub type Waker = Box<dyn Fn() + Send + 'static>;
-
-/// Settings of the solver thread.
-#[derive(Clone, Debug)]
-pub struct ThreadConfig {
-    pub solver: SolverConfig,
-    /// Start shooting at once.
-    pub play: bool,
-    /// Stop shooting below this unshot fraction.
-    pub stop_unshot: f64,
-    /// Stop shooting after this many shots since the last (re)start (scripted runs).
-    pub max_shots: Option<usize>,
-    /// Threads that compute form-factor rows; `None` = one per core. (Leaving the UI a
-    /// core was tried on the 2-core test machine with lavapipe: no measurable change in
-    /// frame times under load, 25 % fewer shots; see docs/VIEWER.md.)
-    pub shot_threads: Option<usize>,
-}
-
-impl ThreadConfig {
-    pub fn shot_threads(&self) -> usize {
-        self.shot_threads
-            .unwrap_or_else(|| {
-                std::thread::available_parallelism()
-                    .map_or(1, |n| n.get())
-                    .saturating_sub(1)
-            })
-            .max(1)
-    }
-}
-
-impl Default for ThreadConfig {
-    fn default() -> Self {
-        Self {
-            solver: SolverConfig::default(),
-            play: true,
-            stop_unshot: 1e-6,
-            max_shots: None,
-            shot_threads: None,
-        }
-    }
-}
-
-/// The UI's end of the solver thread.
-pub struct SolverHandle {
-    tx: SyncSender<Command>,
-    cancel: Arc<AtomicBool>,
-    latest: Arc<Latest<Arc<Snapshot>>>,
-    events: Receiver<Event>,
-    thread: Option<JoinHandle<()>>,
-}
-
-impl SolverHandle {
-    /// Starts the thread; the solver (mesh, hierarchy) is built there, so this returns at
-    /// once.
-    pub fn spawn(scene: Scene, config: ThreadConfig, waker: Waker) -> std::io::Result<Self> {
-        let (tx, rx) = std::sync::mpsc::sync_channel(COMMAND_CAPACITY);
-        let (etx, erx) = std::sync::mpsc::sync_channel(64);
-        let cancel = Arc::new(AtomicBool::new(false));
-        let latest = Arc::new(Latest::default());
-        let threads = config.shot_threads();
-        let worker = Worker {
-            rx,
-            events: etx,
-            cancel: cancel.clone(),
-            latest: latest.clone(),
-            waker,
-            solver: None,
-            loaded_materials: Arc::new(Vec::new()),
-            geometry: None,
-            reflectance: Arc::new(Vec::new()),
-            reflectance_rev: 0,
-            next_id: 1,
-            scene_rev: 0,
-            seq: 0,
-            playing: config.play,
-            steps: 0,
-            stop_unshot: config.stop_unshot,
-            max_shots: config.max_shots,
-            config: config.solver,
-            history: Arc::new(Vec::new()),
-            elapsed: Duration::ZERO,
-            last_publish: None,
-            dirty: false,
-            edit_unpublished: false,
-            edit_published: None,
-        };
-        let thread = std::thread::Builder::new()
-            .name("nusselt-solver".into())
-            .spawn(move || {
-                // Shots run in their own, named pool.
-                match rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .thread_name(|i| format!("nusselt-shot-{i}"))
-                    .build()
-                {
-                    Ok(pool) => pool.install(|| worker.run(scene)),
-                    Err(e) => {
-                        eprintln!("viewer: no thread pool for shots ({e}); using the global one");
-                        worker.run(scene)
-                    }
-                }
-            })?;
-        Ok(Self {
-            tx,
-            cancel,
-            latest,
-            events: erx,
-            thread: Some(thread),
-        })
-    }
-
-    /// Sends without blocking; gives the command back when the channel is full (or the
-    /// thread is gone).
-    pub fn send(&self, command: Command) -> Result<(), Command> {
-        let interrupts = command.interrupts();
-        match self.tx.try_send(command) {
-            Ok(()) => {
-                if interrupts {
-                    self.cancel.store(true, Ordering::Relaxed);
-                }
-                Ok(())
-            }
-            Err(TrySendError::Full(c) | TrySendError::Disconnected(c)) => Err(c),
-        }
-    }
-
-    /// The newest snapshot since the last call, if any.
-    pub fn take_snapshot(&self) -> Option<Arc<Snapshot>> {
-        self.latest.take()
-    }
-
-    pub fn try_event(&self) -> Option<Event> {
-        self.events.try_recv().ok()
-    }
-
-    /// Whether the thread is still running.
-    pub fn is_alive(&self) -> bool {
-        self.thread.as_ref().is_some_and(|t| !t.is_finished())
-    }
-
-    /// Asks the thread to stop and waits up to `timeout` for it. Returns whether it ended.
-    pub fn shutdown(&mut self, timeout: Duration) -> bool {
-        let deadline = Instant::now() + timeout;
-        self.cancel.store(true, Ordering::Relaxed);
-        let mut quit = Some(Command::Quit);
-        while let Some(c) = quit.take() {
-            match self.tx.try_send(c) {
-                Ok(()) | Err(TrySendError::Disconnected(_)) => {}
-                Err(TrySendError::Full(c)) => {
-                    if Instant::now() >= deadline {
-                        break;
-                    }
-                    self.cancel.store(true, Ordering::Relaxed);
-                    std::thread::sleep(Duration::from_millis(1));
-                    quit = Some(c);
-                }
-            }
-        }
-        while self.thread.as_ref().is_some_and(|t| !t.is_finished()) {
-            if Instant::now() >= deadline {
-                return false;
-            }
-            std::thread::sleep(Duration::from_millis(1));
-        }
-        if let Some(t) = self.thread.take() {
-            // The worker catches nothing; a panic there is reported here.
-            if t.join().is_err() {
-                eprintln!("error: the solver thread panicked");
-                return false;
-            }
-        }
-        true
-    }
-}
-
-impl Drop for SolverHandle {
-    fn drop(&mut self) {
-        if self.thread.is_some() {
-            self.shutdown(Duration::from_secs(5));
-        }
-    }
-}
-
-struct Worker {
+pub(super) struct Worker {
     rx: Receiver<Command>,
     events: SyncSender<Event>,
     cancel: Arc<AtomicBool>,
@@ -328,6 +44,8 @@ struct Worker {
     /// A material edit was applied and not yet published.
     edit_unpublished: bool,
     edit_published: Option<Instant>,
+    /// Set by [`Command::PanicOnNextShot`].
+    panic_on_next_shot: Option<String>,
 }
 
 enum Flow {
@@ -336,8 +54,46 @@ enum Flow {
 }
 
 impl Worker {
-    fn run(mut self, scene: Scene) {
-        self.install(scene, self.config.clone());
+    pub(super) fn new(
+        rx: Receiver<Command>,
+        events: SyncSender<Event>,
+        cancel: Arc<AtomicBool>,
+        latest: Arc<Latest<Arc<Snapshot>>>,
+        waker: Waker,
+        config: ThreadConfig,
+    ) -> Worker {
+        Worker {
+            rx,
+            events,
+            cancel,
+            latest,
+            waker,
+            solver: None,
+            loaded_materials: Arc::new(Vec::new()),
+            geometry: None,
+            reflectance: Arc::new(Vec::new()),
+            reflectance_rev: 0,
+            next_id: 1,
+            scene_rev: 0,
+            seq: 0,
+            playing: config.play,
+            steps: 0,
+            stop_unshot: config.stop_unshot,
+            max_shots: config.max_shots,
+            config: config.solver,
+            history: Arc::new(Vec::new()),
+            elapsed: Duration::ZERO,
+            last_publish: None,
+            dirty: false,
+            edit_unpublished: false,
+            edit_published: None,
+            panic_on_next_shot: None,
+        }
+    }
+
+    pub(super) fn run(mut self, scene: Scene) {
+        let config = self.config.clone();
+        self.guarded(Some(scene.name.clone()), true, |w| w.install(scene, config));
         loop {
             self.cancel.store(false, Ordering::Relaxed);
             // Drain what is queued; block only when there is nothing to shoot.
@@ -350,7 +106,7 @@ impl Worker {
                     }
                 } else {
                     if self.dirty {
-                        self.publish();
+                        self.guarded(None, false, Self::publish);
                     }
                     // Wake up now and then even if idle so a lost waker cannot stall
                     // anything; no work is done on these wake-ups.
@@ -360,14 +116,60 @@ impl Worker {
                         Err(RecvTimeoutError::Disconnected) => return,
                     }
                 };
-                if let Flow::Quit = self.apply(command) {
+                let (scene, loads) = match &command {
+                    Command::LoadPath(p) => (Some(p.display().to_string()), true),
+                    Command::LoadScene(s) => (Some(s.name.clone()), true),
+                    _ => (None, false),
+                };
+                if let Some(Flow::Quit) = self.guarded(scene, loads, |w| w.apply(command)) {
                     return;
                 }
             }
             if self.dirty && self.due() {
-                self.publish();
+                self.guarded(None, false, Self::publish);
             }
-            self.shoot_once();
+            self.guarded(None, false, Self::shoot_once);
+        }
+    }
+
+    /// Runs `work` (shooting, re-meshing, loading, publishing: everything that calls into
+    /// the solver) and turns a panic in it into [`Event::Failed`] naming `scene` (default:
+    /// the current one). The solver is dropped, since its state after a panic is unknown,
+    /// unless `loads` and the panic came before the new scene was installed (the current
+    /// one is then untouched and stays, as for a load error). Nothing is published after a
+    /// drop, so the UI keeps the last snapshot; the thread lives on for new commands.
+    fn guarded<T>(
+        &mut self,
+        scene: Option<String>,
+        loads: bool,
+        work: impl FnOnce(&mut Self) -> T,
+    ) -> Option<T> {
+        let scene_rev = self.scene_rev;
+        let scene = scene.unwrap_or_else(|| {
+            self.solver
+                .as_ref()
+                .map_or_else(|| "no scene".to_string(), |s| s.scene().name.clone())
+        });
+        match std::panic::catch_unwind(AssertUnwindSafe(|| work(self))) {
+            Ok(v) => Some(v),
+            Err(payload) => {
+                let message = payload
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| payload.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "(no message)".to_string());
+                if !(loads && self.scene_rev == scene_rev) {
+                    self.solver = None;
+                    self.geometry = None;
+                    self.playing = false;
+                    self.steps = 0;
+                    self.dirty = false;
+                }
+                self.send_event(Event::Failed(format!(
+                    "solver failed on {scene}: {message}"
+                )));
+                None
+            }
         }
     }
 
@@ -389,6 +191,9 @@ impl Worker {
     fn shoot_once(&mut self) {
         if !self.wants_to_shoot() {
             return;
+        }
+        if let Some(message) = self.panic_on_next_shot.take() {
+            panic!("{message}");
         }
         let Some(solver) = self.solver.as_mut() else {
             return;
@@ -455,7 +260,7 @@ impl Worker {
         let Some(solver) = &self.solver else { return };
         let g = Geometry::from_mesh(self.next_id, solver.mesh());
         self.next_id += 1;
-        self.reflectance = Arc::new(corner_reflectance(&g, solver));
+        self.reflectance = Arc::new(vertex_reflectance(&g, solver));
         self.reflectance_rev += 1;
         self.geometry = Some(Arc::new(g));
     }
@@ -469,6 +274,7 @@ impl Worker {
     fn apply(&mut self, command: Command) -> Flow {
         match command {
             Command::Quit => return Flow::Quit,
+            Command::PanicOnNextShot(message) => self.panic_on_next_shot = Some(message),
             Command::Play => self.playing = true,
             Command::Pause => {
                 self.playing = false;
@@ -575,7 +381,7 @@ impl Worker {
             Ok(()) => {
                 self.edit_unpublished = true;
                 if let Some(g) = &self.geometry {
-                    self.reflectance = Arc::new(corner_reflectance(g, s));
+                    self.reflectance = Arc::new(vertex_reflectance(g, s));
                     self.reflectance_rev += 1;
                 }
             }

@@ -1,0 +1,125 @@
+//! The viewport: the orbit camera's mouse and key bindings, picking by click, and the
+//! paint callback that draws the snapshot (see [`super::render`]).
+
+use eframe::egui;
+use eframe::egui_wgpu;
+
+use super::app::ViewerApp;
+use super::panels::Action;
+use super::render::{FLAG_SELECTION, FLAG_SHOOTER, NO_PATCH, Overlays, Uniforms, ViewportCallback};
+use super::solver_thread::Command;
+
+impl ViewerApp {
+    pub(super) fn viewport(&mut self, ui: &mut egui::Ui, actions: &mut Vec<Action>) {
+        let rect = ui.available_rect_before_wrap();
+        self.viewport_rect = rect;
+        let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
+        let Some(snap) = self.snapshot.clone() else {
+            ui.painter().text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                "building the mesh…",
+                egui::FontId::proportional(18.0),
+                egui::Color32::GRAY,
+            );
+            return;
+        };
+        let Some(camera) = self.camera.as_mut() else {
+            return;
+        };
+        // Camera: drag = orbit, right/middle drag or shift+drag = pan, wheel = zoom.
+        let shift = ui.input(|i| i.modifiers.shift);
+        let delta = response.drag_delta();
+        if response.dragged_by(egui::PointerButton::Primary) && !shift {
+            camera.orbit(delta.x as f64, delta.y as f64);
+        } else if response.dragged_by(egui::PointerButton::Secondary)
+            || response.dragged_by(egui::PointerButton::Middle)
+            || (response.dragged_by(egui::PointerButton::Primary) && shift)
+        {
+            camera.pan(delta.x as f64, delta.y as f64, rect.height() as f64);
+        }
+        if response.hovered() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0 {
+                camera.zoom(scroll as f64);
+            }
+        }
+        if response.double_clicked() {
+            actions.push(Action::FrameScene);
+        } else if response.clicked()
+            && let Some(pos) = response.interact_pointer_pos()
+        {
+            let local = pos - rect.min;
+            let (o, d) = camera.ray(
+                local.x as f64,
+                local.y as f64,
+                rect.width() as f64,
+                rect.height() as f64,
+            );
+            actions.push(Action::Select(snap.geometry.pick(o, d).map(|p| p.0)));
+        }
+        let view = &self.panel.view;
+        let ambient = if view.ambient { snap.ambient } else { [0.0; 3] };
+        let mut flags = 0;
+        if view.highlight_shooter {
+            flags |= FLAG_SHOOTER;
+        }
+        if self.panel.selection.is_some() {
+            flags |= FLAG_SELECTION;
+        }
+        let shooter = snap.stats.last_shooter.unwrap_or(NO_PATCH);
+        let uniforms = Uniforms {
+            view_proj: camera
+                .view_proj(rect.aspect_ratio() as f64)
+                .to_cols_array_2d(),
+            ambient_exposure: [ambient[0], ambient[1], ambient[2], view.exposure()],
+            ids: [shooter, self.panel.selection.unwrap_or(NO_PATCH), flags, 0],
+            element_line_color: [0.0, 0.0, 0.0, 0.45],
+            patch_line_color: [1.0, 1.0, 1.0, 0.8],
+            params: [1e-3, 0.0, 0.0, 0.0],
+        };
+        ui.painter().add(egui_wgpu::Callback::new_paint_callback(
+            rect,
+            ViewportCallback {
+                snapshot: Some(snap.clone()),
+                uniforms,
+                overlays: Overlays {
+                    element_edges: view.element_edges,
+                    patch_outlines: view.patch_outlines,
+                },
+            },
+        ));
+        // Hovered files: a hint.
+        if ui.input(|i| !i.raw.hovered_files.is_empty()) {
+            ui.painter().text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                "drop an .obj to open it",
+                egui::FontId::proportional(22.0),
+                egui::Color32::WHITE,
+            );
+        }
+    }
+
+    pub(super) fn keys(&mut self, ctx: &egui::Context, actions: &mut Vec<Action>) {
+        if ctx.egui_wants_keyboard_input() {
+            return;
+        }
+        let playing = self.snapshot.as_ref().is_some_and(|s| s.stats.playing);
+        ctx.input(|i| {
+            if i.key_pressed(egui::Key::F) {
+                actions.push(Action::FrameScene);
+            }
+            if i.key_pressed(egui::Key::Home) {
+                actions.push(Action::ResetView);
+            }
+            if i.key_pressed(egui::Key::Space) {
+                actions.push(Action::Solver(if playing {
+                    Command::Pause
+                } else {
+                    Command::Play
+                }));
+            }
+        });
+    }
+}
