@@ -67,8 +67,8 @@ pub struct ViewCmdArgs {
     /// Present frames without waiting for vertical sync.
     #[arg(long)]
     pub no_vsync: bool,
-    /// Threads computing form factors; default one fewer than the cores
-    /// (`available_parallelism − 1`, at least 1), leaving one for the window.
+    /// Threads computing form factors; default one per core (`available_parallelism`, at
+    /// least 1), as the viewer's shot pool does (docs/VIEWER.md measured it).
     #[arg(long)]
     pub solver_threads: Option<usize>,
     /// Material edit, as in the edit panel: TARGET:kd=r,g,b[:ke=r,g,b], TARGET a material

@@ -16,6 +16,33 @@ use crate::geometry::polygon;
 
 /// Form factor from a differential area at `p` (unit normal `n`) to `poly`, seen from the
 /// polygon's front (counter-clockwise side). Returns 0 when `p` is behind the polygon.
+///
+/// A point 1 below the centre of a unit square facing it: four 0.5 × 0.5 rectangles with a
+/// corner overhead, each `(1/2π)[A/√(1+A²) atan(B/√(1+A²)) + B/√(1+B²) atan(A/√(1+B²))]`
+/// with `A = B = 0.5` (Howell's catalogue, B-3):
+///
+/// ```
+/// use glam::DVec3;
+/// use nusselt::formfactor::contour::point_to_polygon;
+///
+/// // Facing down (−z): counter-clockwise seen from below.
+/// let square = [
+///     DVec3::new(0.0, 0.0, 1.0),
+///     DVec3::new(0.0, 1.0, 1.0),
+///     DVec3::new(1.0, 1.0, 1.0),
+///     DVec3::new(1.0, 0.0, 1.0),
+/// ];
+/// let f = point_to_polygon(DVec3::new(0.5, 0.5, 0.0), DVec3::Z, &square);
+///
+/// let (a, b) = (0.5f64, 0.5f64);
+/// let (sa, sb) = ((1.0 + a * a).sqrt(), (1.0 + b * b).sqrt());
+/// let corner = (a / sa * (b / sa).atan() + b / sb * (a / sb).atan()) / (2.0 * std::f64::consts::PI);
+/// assert!((f - 4.0 * corner).abs() < 1e-14, "{f} vs {}", 4.0 * corner);
+///
+/// // Behind the square, or facing away from it: nothing.
+/// assert_eq!(point_to_polygon(DVec3::new(0.5, 0.5, 2.0), DVec3::NEG_Z, &square), 0.0);
+/// assert_eq!(point_to_polygon(DVec3::new(0.5, 0.5, 0.0), DVec3::NEG_Z, &square), 0.0);
+/// ```
 pub fn point_to_polygon(p: DVec3, n: DVec3, poly: &[DVec3]) -> f64 {
     match polygon::normal(poly) {
         Some(pn) => point_to_polygon_with_normal(p, n, poly, pn),
