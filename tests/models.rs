@@ -598,7 +598,11 @@ fn large_terrain_model_converges() {
 // ---------------------------------------------------------------------------------------
 // Random triangle soups
 
-fn soup_obj(points: &[(i8, i8, i8)], tris: &[(usize, usize, usize, u8)]) -> String {
+/// A face of a soup: three vertex indices, an optional fourth (a quad, usually
+/// non-planar on the lattice), and a material.
+type SoupFace = (usize, usize, usize, Option<usize>, u8);
+
+fn soup_obj(points: &[(i8, i8, i8)], faces: &[SoupFace]) -> String {
     use std::fmt::Write as _;
     let mut obj = String::from("mtllib m.mtl\n");
     for (x, y, z) in points {
@@ -607,16 +611,20 @@ fn soup_obj(points: &[(i8, i8, i8)], tris: &[(usize, usize, usize, u8)]) -> Stri
         let f = |c: i8| c as f64 * 0.25 + if c % 7 == 0 { 1e-7 } else { 0.0 };
         let _ = writeln!(obj, "v {} {} {}", f(*x), f(*y), f(*z));
     }
-    for (a, b, c, m) in tris {
+    let n = points.len();
+    for (a, b, c, d, m) in faces {
         let mat = ["light", "grey", "dark"][*m as usize % 3];
-        let n = points.len();
-        let _ = writeln!(
+        let _ = write!(
             obj,
             "usemtl {mat}\nf {} {} {}",
             a % n + 1,
             b % n + 1,
             c % n + 1
         );
+        if let Some(d) = d {
+            let _ = write!(obj, " {}", d % n + 1);
+        }
+        obj.push('\n');
     }
     obj
 }
@@ -632,16 +640,19 @@ proptest! {
         ..ProptestConfig::default()
     })]
 
-    /// Any triangle soup: loading may refuse it with an error, but nothing panics; what
-    /// loads meshes, takes 20 shots and renders a small image with finite, non-negative
-    /// values.
+    /// Any soup of triangles and (mostly non-planar) quads: loading may refuse it with an
+    /// error, but nothing panics; what loads meshes, takes 20 shots and renders a small image
+    /// with finite, non-negative values.
     #[test]
     fn random_triangle_soups_never_panic(
         points in prop::collection::vec((-8i8..8, -8i8..8, -8i8..8), 3..24),
-        tris in prop::collection::vec((0usize..64, 0usize..64, 0usize..64, 0u8..3), 1..40),
+        faces in prop::collection::vec(
+            (0usize..64, 0usize..64, 0usize..64, prop::option::of(0usize..64), 0u8..3),
+            1..40,
+        ),
         two_sided in any::<bool>(),
     ) {
-        let obj = soup_obj(&points, &tris);
+        let obj = soup_obj(&points, &faces);
         let opts = LoadOptions { two_sided, ..Default::default() };
         let Ok(scene) = Scene::from_obj_str("soup.obj", &obj, &[("m.mtl", SOUP_MTL)], &opts) else {
             return Ok(());
