@@ -8,7 +8,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use rayon::prelude::*;
 
 use super::visibility::{
-    PolygonSampler, Visibility, element_visibility, occluded_point_to_polygon, side,
+    PolygonSampler, Visibility, element_visibility, occluded_point_to_polygon, patch_pair_unblocked,
+    side,
 };
 use super::{
     FormFactorMethod, FormFactorParams, contour, exact, hemicube, hybrid, montecarlo, raycast,
@@ -121,12 +122,16 @@ pub(crate) fn contour_patch(
         let hull = Shaft::between(&receiver.bounds, &patch.bounds, ctx.epsilon);
         candidates.retain(|&t| !hull.excludes_triangle(ctx.bvh.stored_triangle(t)));
     }
+    // Too many candidate blockers to list: shadow rays through the whole BVH, unless the
+    // 17-ray patch-pair test (for shooters that probe) finds the pair wholly unblocked.
+    let all_visible = !culled
+        && setup.probe
+        && patch_pair_unblocked(ctx, receiver, patch, shooter, k, ignore);
     for (i, f) in slice.iter_mut().enumerate() {
         let j = first + i;
         let e = &mesh.elements[j];
         let mut rng = Rng::new(hash_seed(&[ctx.params.seed, shooter.0 as u64, j as u64]), 0);
-        if !culled {
-            // Too many candidate blockers to list: shadow rays through the whole BVH.
+        if !culled && !all_visible {
             *f = occluded_point_to_polygon(
                 ctx.bvh,
                 e.centroid,
@@ -147,7 +152,7 @@ pub(crate) fn contour_patch(
             &patch.polygon,
             patch.normal,
         );
-        if analytic <= 0.0 || candidates.is_empty() {
+        if analytic <= 0.0 || all_visible || candidates.is_empty() {
             *f = analytic.max(0.0) as f32;
             continue;
         }

@@ -237,6 +237,34 @@ impl Mesh {
         Mesh::build_with(scene, element_size, default_patch_size(element_size))
     }
 
+    /// The default mesh: element size from `budget` ([`element_size_for_budget`]), or with
+    /// no budget given [`default_element_size`]; patches `patch_size` or
+    /// [`default_patch_size`]. The size is an estimate from face areas (merged outlines,
+    /// slivers and small faces change the real count), so a mesh more than 15 % over the
+    /// budget is rebuilt coarser, at most twice.
+    pub fn build_for_budget(
+        scene: &Scene,
+        budget: Option<usize>,
+        patch_size: Option<f64>,
+    ) -> Result<Mesh, MeshError> {
+        let target = budget.unwrap_or(ELEMENT_BUDGET).max(1) as f64;
+        let mut size = match budget {
+            Some(b) => element_size_for_budget(scene, b),
+            None => default_element_size(scene),
+        };
+        let mut tries = 0;
+        loop {
+            let patch = patch_size.unwrap_or_else(|| default_patch_size(size)).max(size);
+            let mesh = Mesh::build_with(scene, size, patch)?;
+            let count = mesh.elements.len() as f64;
+            tries += 1;
+            if count <= 1.15 * target || tries == 3 {
+                return Ok(mesh);
+            }
+            size *= (count / target).sqrt();
+        }
+    }
+
     pub fn patch(&self, id: PatchId) -> &Patch {
         &self.patches[id.0 as usize]
     }

@@ -16,6 +16,8 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
+use rayon::prelude::*;
+
 use crate::formfactor::hemicube::ItemBufferRaster;
 use crate::formfactor::{self, FormFactorMethod, FormFactorParams, RowContext};
 use crate::geometry::Bvh;
@@ -167,6 +169,8 @@ pub struct ProgressiveSolver {
     epsilon: f64,
     /// Per element.
     radiosity: Vec<Rgb>,
+    /// Reflectance of each element's material (read on every shot).
+    element_rho: Vec<Rgb>,
     incident: Vec<Rgb>,
     /// Per patch, radiance units.
     unshot: Vec<Rgb>,
@@ -212,17 +216,16 @@ impl ProgressiveSolver {
         if config.method == FormFactorMethod::GpuHemicube && config.raster.is_none() {
             return Err(SolverError::NoRaster);
         }
-        let size = config
-            .element_size
-            .unwrap_or_else(|| match config.max_elements {
-                Some(budget) => mesh::element_size_for_budget(&scene, budget),
-                None => mesh::default_element_size(&scene),
-            });
-        let patch = config
-            .patch_size
-            .unwrap_or_else(|| mesh::default_patch_size(size))
-            .max(size);
-        let mesh = Mesh::build_with(&scene, size, patch)?;
+        let mesh = match config.element_size {
+            Some(size) => {
+                let patch = config
+                    .patch_size
+                    .unwrap_or_else(|| mesh::default_patch_size(size))
+                    .max(size);
+                Mesh::build_with(&scene, size, patch)?
+            }
+            None => Mesh::build_for_budget(&scene, config.max_elements, config.patch_size)?,
+        };
         check_power(&scene.materials, &mesh)?;
         let bvh = Bvh::build(&mesh.blocker_triangles(&scene));
         let epsilon = 1e-6 * mesh.bounds().diagonal().max(1e-12);
@@ -233,6 +236,7 @@ impl ProgressiveSolver {
             bvh,
             epsilon,
             radiosity: Vec::new(),
+            element_rho: Vec::new(),
             incident: Vec::new(),
             unshot: Vec::new(),
             rows: Vec::new(),
@@ -251,6 +255,7 @@ impl ProgressiveSolver {
     pub fn reset(&mut self) {
         let n = self.mesh.elements.len();
         self.incident = vec![Rgb::ZERO; n];
+        self.element_rho = self.element_reflectance();
         self.radiosity = self
             .mesh
             .elements
@@ -279,6 +284,14 @@ impl ProgressiveSolver {
             .iter()
             .map(|p| channel_sum(self.scene.materials[p.material.0 as usize].emission) * p.area)
             .sum()
+    }
+
+    fn element_reflectance(&self) -> Vec<Rgb> {
+        self.mesh
+            .elements
+            .iter()
+            .map(|e| self.material_of(e.patch).reflectance)
+            .collect()
     }
 
     fn material_of(&self, patch: PatchId) -> &crate::scene::Material {
@@ -449,21 +462,40 @@ impl ProgressiveSolver {
         }
         let delta = self.unshot[shooter.0 as usize];
         self.unshot[shooter.0 as usize] = Rgb::ZERO;
-        let mut gained = vec![Rgb::ZERO; self.mesh.patches.len()];
-        for (j, e) in self.mesh.elements.iter().enumerate() {
-            let f = row[j] as f64;
-            if f == 0.0 {
-                continue;
-            }
-            let rho = self.scene.materials
-                [self.mesh.patches[e.patch.0 as usize].material.0 as usize]
-                .reflectance;
-            let h = delta * f;
-            self.incident[j] += h;
-            let db = rho * h;
-            self.radiosity[j] += db;
-            gained[e.patch.0 as usize] += db * e.area;
+        // Receiving patches in parallel: each owns its elements' slices (elements are
+        // stored patch by patch).
+        let mesh = &self.mesh;
+        let rho = &self.element_rho;
+        let mut jobs = Vec::with_capacity(mesh.patches.len());
+        let (mut radiosity, mut incident) = (&mut self.radiosity[..], &mut self.incident[..]);
+        for p in &mesh.patches {
+            let n = (p.elements.end - p.elements.start) as usize;
+            let (b, rest_b) = std::mem::take(&mut radiosity).split_at_mut(n);
+            let (h, rest_h) = std::mem::take(&mut incident).split_at_mut(n);
+            radiosity = rest_b;
+            incident = rest_h;
+            jobs.push((p.elements.start as usize, b, h));
         }
+        let gained: Vec<Rgb> = jobs
+            .into_par_iter()
+            .with_min_len(32)
+            .map(|(first, b, h)| {
+                let mut gained = Rgb::ZERO;
+                for (k, (b, h)) in b.iter_mut().zip(h.iter_mut()).enumerate() {
+                    let j = first + k;
+                    let f = row[j] as f64;
+                    if f == 0.0 {
+                        continue;
+                    }
+                    let dh = delta * f;
+                    *h += dh;
+                    let db = rho[j] * dh;
+                    *b += db;
+                    gained += db * mesh.elements[j].area;
+                }
+                gained
+            })
+            .collect();
         for ((u, g), p) in self.unshot.iter_mut().zip(&gained).zip(&self.mesh.patches) {
             *u += *g / p.area;
         }
@@ -542,6 +574,7 @@ impl ProgressiveSolver {
         candidate[idx].emission = emission;
         check_power(&candidate, &self.mesh)?;
         self.scene.materials = candidate;
+        self.element_rho = self.element_reflectance();
         let mut gained = vec![Rgb::ZERO; self.mesh.patches.len()];
         for (j, e) in self.mesh.elements.iter().enumerate() {
             let p = &self.mesh.patches[e.patch.0 as usize];
