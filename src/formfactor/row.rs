@@ -8,8 +8,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use rayon::prelude::*;
 
 use super::visibility::{
-    PolygonSampler, Visibility, element_visibility, occluded_point_to_polygon, patch_pair_unblocked,
-    side,
+    PolygonSampler, Visibility, element_visibility, occluded_point_to_polygon,
+    patch_pair_unblocked, side,
 };
 use super::{
     FormFactorMethod, FormFactorParams, contour, exact, hemicube, hybrid, montecarlo, raycast,
@@ -124,9 +124,8 @@ pub(crate) fn contour_patch(
     }
     // Too many candidate blockers to list: shadow rays through the whole BVH, unless the
     // 17-ray patch-pair test (for shooters that probe) finds the pair wholly unblocked.
-    let all_visible = !culled
-        && setup.probe
-        && patch_pair_unblocked(ctx, receiver, patch, shooter, k, ignore);
+    let all_visible =
+        !culled && setup.probe && patch_pair_unblocked(ctx, receiver, patch, shooter, k, ignore);
     for (i, f) in slice.iter_mut().enumerate() {
         let j = first + i;
         let e = &mesh.elements[j];

@@ -254,7 +254,9 @@ impl Mesh {
         };
         let mut tries = 0;
         loop {
-            let patch = patch_size.unwrap_or_else(|| default_patch_size(size)).max(size);
+            let patch = patch_size
+                .unwrap_or_else(|| default_patch_size(size))
+                .max(size);
             let mesh = Mesh::build_with(scene, size, patch)?;
             let count = mesh.elements.len() as f64;
             tries += 1;
