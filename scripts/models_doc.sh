@@ -70,9 +70,10 @@ print(n)
 PY
 )
     png=screenshots/models/$name.png
-    /usr/bin/time -f '%M' -o "$tmp/mem" "$bin" render "$obj" --out "$png" --unshot 1e-3 \
+    /usr/bin/time -f '%M' -o "$tmp/mem" timeout "${TIMEOUT:-300}" "$bin" render "$obj" --out "$png" --unshot 1e-3 \
         --width 192 --height 144 --spp 4 --json --quiet >"$tmp/json" 2>"$tmp/err" || {
-        echo "$name failed:" >&2; cat "$tmp/err" >&2; rows+="| $name | $tris | failed: $(tail -1 "$tmp/err") | | | | | | |"$'\n'; continue; }
+        echo "$name failed:" >&2; cat "$tmp/err" >&2
+        rows+="| $name | $tris | not converged within ${TIMEOUT:-300} s, or failed: $(tail -1 "$tmp/err" | tr '|' '/') | | | | | | | |"$'\n'; continue; }
     mem=$(tail -1 "$tmp/mem")
     row=$(python3 - "$tmp/json" "$mem" "$name" "$tris" "$png" <<'PY'
 import json, sys

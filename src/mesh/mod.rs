@@ -396,27 +396,33 @@ mod tests {
             Scene::from_obj_str("t.obj", &obj2, &[("m.mtl", mtl)], &LoadOptions::default())
                 .expect("scene");
         mesh = Mesh::build(&scene2, 0.34).expect("mesh");
-        // Left patch: 3×3 grid (vertices at y = 1/3, 2/3); right patch 0.5 wide: 2×3 grid…
-        // both have 3 rows, so still conforming. Use sizes that differ per patch instead:
-        let values: Vec<Rgb> = mesh
-            .elements
-            .iter()
-            .map(|e| Rgb::splat(e.centroid.y))
-            .collect();
-        let vv = mesh.vertex_values(&values);
-        assert!(vv.iter().all(|v| v.is_finite()));
+        // The two quads (1 and 0.5 wide) share an edge and a plane: one surface, meshed as
+        // one 1.5 × 1 grid, so no T-vertex, and a linear field is reproduced at every vertex
+        // (a wrong weight, or a vertex shared across the light, breaks it).
+        assert_eq!(mesh.t_vertex_count(), 0);
+        let field = |p: DVec3| 1.0 + 0.3 * p.x + 0.7 * p.y;
+        let linear_error = |mesh: &Mesh| {
+            let values: Vec<Rgb> = mesh
+                .elements
+                .iter()
+                .map(|e| Rgb::splat(field(e.centroid)))
+                .collect();
+            let vv = mesh.vertex_values(&values);
+            mesh.vertices
+                .iter()
+                .zip(&vv)
+                .filter(|(p, _)| p.z == 0.0)
+                .map(|(p, v)| (v.x - field(*p)).abs())
+                .fold(0.0, f64::max)
+        };
+        assert!(linear_error(&mesh) < 1e-9, "{}", linear_error(&mesh));
         let obj3 = "mtllib m.mtl\nusemtl w\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 1 0.5 0\nv 1.1 0.5 0\nv 1.1 1 0\nf 1 2 5 3 4\nf 5 6 7 3\nusemtl l\nv 0 0 3\nv 0 1 3\nv 1 1 3\nf 8 9 10\n";
         let scene3 = Scene::from_obj_str("t.obj", obj3, &[("m.mtl", mtl)], &LoadOptions::default())
             .expect("scene");
-        let mesh3 = Mesh::build(&scene3, 10.0).expect("mesh");
-        // The left pentagon's vertex (1, 0.5) is a corner of the right quad but lies inside
-        // no edge of the pentagon's triangles: the pentagon has it as a corner too.
-        let values: Vec<Rgb> = mesh3
-            .elements
-            .iter()
-            .map(|e| Rgb::splat(e.centroid.x))
-            .collect();
-        assert!(mesh3.vertex_values(&values).iter().all(|v| v.is_finite()));
+        let mesh3 = Mesh::build(&scene3, 0.2).expect("mesh");
+        // A pentagon and a quad sharing the vertex (1, 0.5) and the edge to (1, 1): finely
+        // meshed, a linear field is still reproduced at every vertex.
+        assert!(linear_error(&mesh3) < 1e-9, "{}", linear_error(&mesh3));
         // A true T-vertex: a single quad next to two stacked quads (the upper one narrower,
         // so that the two do not merge into one convex surface without the vertex).
         let obj4 = "mtllib m.mtl\nusemtl w\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 0.5 0\nv 1 0.5 0\nv 1.5 1 0\nv 1.5 0.5 0\nf 1 2 3 4\nf 2 5 6 9 7\nf 7 9 8 3\nusemtl l\nv 0 0 3\nv 0 1 3\nv 1 1 3\nf 10 11 12\n";

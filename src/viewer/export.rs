@@ -2,7 +2,6 @@
 //! PNG. Every write goes to a temporary file in the target's folder and is renamed over the
 //! target, so a crash or a full disk never leaves a half-written file behind.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use crate::scene::Material;
@@ -21,31 +20,13 @@ pub enum ExportError {
     Encode { path: PathBuf, message: String },
 }
 
-/// Writes `bytes` to `path` atomically (temp file in the same folder + rename).
+/// Writes `bytes` to `path` atomically ([`crate::render::image::atomic_write`]: temp file in
+/// the same folder + rename), with the path in the error.
 pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
-    let io = |source| ExportError::Io {
+    crate::render::image::atomic_write(path, bytes).map_err(|source| ExportError::Io {
         path: path.to_path_buf(),
         source,
-    };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out".into());
-    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.map_err(io)
+    })
 }
 
 /// Linear radiance to an 8-bit sRGB value after exposure (the viewport's own transfer;
