@@ -11,14 +11,14 @@
 //! default density) and a wall-clock budget: a solve that has not reached `--unshot 1e-3`
 //! by then fails with what it reached, instead of hanging CI.
 
+mod common;
+
 use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
-use std::time::Instant;
 
 use glam::DVec3;
 use nusselt::mesh::Mesh;
 use nusselt::scene::{LoadOptions, Scene};
-use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+use nusselt::solver::{ProgressiveSolver, SolverConfig};
 
 /// Seconds a solve may take in a debug build before the case counts as not converging.
 const BUDGET_S: f64 = 60.0;
@@ -49,35 +49,7 @@ fn solver(scene: Scene, element: f64, patch: f64) -> ProgressiveSolver {
 
 /// Shoots to `unshot` within [`BUDGET_S`]; fails with what was reached otherwise.
 fn converge(s: &mut ProgressiveSolver, unshot: f64) {
-    let start = Instant::now();
-    s.run(
-        &StopCriteria {
-            unshot,
-            max_shots: None,
-            max_seconds: Some(BUDGET_S),
-        },
-        &AtomicBool::new(false),
-        &mut |_| {},
-    );
-    let secs = start.elapsed().as_secs_f64();
-    eprintln!(
-        "{}: {} patches, {} elements, {} shots, unshot {:.3e} in {secs:.1} s",
-        s.scene().name,
-        s.mesh().patches.len(),
-        s.mesh().elements.len(),
-        s.shots(),
-        s.unshot_fraction()
-    );
-    assert!(
-        s.unshot_fraction() <= unshot,
-        "{}: not converged to unshot {unshot} within {BUDGET_S} s: {} shots, {} patches, {} \
-         elements, unshot {:.3e}",
-        s.scene().name,
-        s.shots(),
-        s.mesh().patches.len(),
-        s.mesh().elements.len(),
-        s.unshot_fraction()
-    );
+    common::converge_within(s, unshot, BUDGET_S);
 }
 
 /// Every element radiance (with and without the ambient term) and every display-vertex

@@ -10,6 +10,8 @@
 //! build. Each solve has a wall-clock budget; one that has not converged by then fails with
 //! what it reached (no silent skips, no hangs).
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::atomic::AtomicBool;
@@ -54,37 +56,7 @@ fn coarse_solver(scene: Scene) -> ProgressiveSolver {
 }
 
 fn converge(s: &mut ProgressiveSolver, unshot: f64) -> f64 {
-    let start = Instant::now();
-    s.run(
-        &StopCriteria {
-            unshot,
-            max_shots: None,
-            max_seconds: Some(BUDGET_S),
-        },
-        &AtomicBool::new(false),
-        &mut |_| {},
-    );
-    let secs = start.elapsed().as_secs_f64();
-    eprintln!(
-        "{}: {} faces, {} patches, {} elements, {} shots, unshot {:.3e} in {secs:.1} s",
-        s.scene().name,
-        s.scene().faces.len(),
-        s.mesh().patches.len(),
-        s.mesh().elements.len(),
-        s.shots(),
-        s.unshot_fraction()
-    );
-    assert!(
-        s.unshot_fraction() <= unshot,
-        "{}: not converged to unshot {unshot} within {BUDGET_S} s: {} shots, {} patches, {} \
-         elements, unshot {:.3e}",
-        s.scene().name,
-        s.shots(),
-        s.mesh().patches.len(),
-        s.mesh().elements.len(),
-        s.unshot_fraction()
-    );
-    secs
+    common::converge_within(s, unshot, BUDGET_S)
 }
 
 fn assert_sane(s: &ProgressiveSolver) {

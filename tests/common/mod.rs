@@ -95,3 +95,43 @@ pub fn hemicube_bound(res: u32, p: DVec3, polygons: &[&[DVec3]]) -> f64 {
     }
     SQRT_2 * d * theta / PI + (15.0 * edges + 8.0) * d * d / PI
 }
+
+/// Shoots to `unshot` within `budget_s` wall seconds; fails with what was reached otherwise.
+/// Returns the seconds taken.
+pub fn converge_within(
+    s: &mut nusselt::solver::ProgressiveSolver,
+    unshot: f64,
+    budget_s: f64,
+) -> f64 {
+    let start = std::time::Instant::now();
+    s.run(
+        &nusselt::solver::StopCriteria {
+            unshot,
+            max_shots: None,
+            max_seconds: Some(budget_s),
+        },
+        &std::sync::atomic::AtomicBool::new(false),
+        &mut |_| {},
+    );
+    let secs = start.elapsed().as_secs_f64();
+    eprintln!(
+        "{}: {} faces, {} patches, {} elements, {} shots, unshot {:.3e} in {secs:.1} s",
+        s.scene().name,
+        s.scene().faces.len(),
+        s.mesh().patches.len(),
+        s.mesh().elements.len(),
+        s.shots(),
+        s.unshot_fraction()
+    );
+    assert!(
+        s.unshot_fraction() <= unshot,
+        "{}: not converged to unshot {unshot} within {budget_s} s: {} shots, {} patches, {} \
+         elements, unshot {:.3e}",
+        s.scene().name,
+        s.shots(),
+        s.mesh().patches.len(),
+        s.mesh().elements.len(),
+        s.unshot_fraction()
+    );
+    secs
+}
