@@ -13,6 +13,8 @@
 
 mod common;
 
+use common::{assert_sane, unshot_power};
+
 use std::path::PathBuf;
 
 use glam::DVec3;
@@ -50,42 +52,6 @@ fn solver(scene: Scene, element: f64, patch: f64) -> ProgressiveSolver {
 /// Shoots to `unshot` within [`BUDGET_S`]; fails with what was reached otherwise.
 fn converge(s: &mut ProgressiveSolver, unshot: f64) {
     common::converge_within(s, unshot, BUDGET_S);
-}
-
-/// Every element radiance (with and without the ambient term) and every display-vertex
-/// value is finite and non-negative.
-fn assert_sane(s: &ProgressiveSolver) {
-    let name = &s.scene().name;
-    for ambient in [false, true] {
-        for (j, b) in s.element_radiance(ambient).iter().enumerate() {
-            assert!(
-                b.is_finite() && b.min_element() >= 0.0,
-                "{name}: element {j} radiance {b} (ambient {ambient})"
-            );
-        }
-    }
-    for (j, h) in s.incident().iter().enumerate() {
-        assert!(
-            h.is_finite() && h.min_element() >= 0.0,
-            "{name}: element {j} incident {h}"
-        );
-    }
-    let vertex_radiance = s.mesh().vertex_values(&s.element_radiance(true));
-    for (v, b) in vertex_radiance.iter().enumerate() {
-        assert!(
-            b.is_finite() && b.min_element() >= 0.0,
-            "{name}: vertex {v} radiance {b:?}"
-        );
-    }
-}
-
-/// Unshot power Σ ΔB·A over patches, per channel.
-fn unshot_power(s: &ProgressiveSolver) -> DVec3 {
-    s.unshot()
-        .iter()
-        .zip(&s.mesh().patches)
-        .map(|(u, p)| *u * p.area)
-        .sum()
 }
 
 /// Closed scene: every shot lands, so `absorbed + unshot = emitted` at every step, up to

@@ -12,12 +12,13 @@
 
 mod common;
 
+use common::{assert_sane, unshot_power};
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use glam::DVec3;
 use nusselt::render::{self, Image, RenderSettings, SolutionView};
 use nusselt::scene::{Camera, LoadOptions, Scene};
 use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
@@ -57,33 +58,6 @@ fn coarse_solver(scene: Scene) -> ProgressiveSolver {
 
 fn converge(s: &mut ProgressiveSolver, unshot: f64) -> f64 {
     common::converge_within(s, unshot, BUDGET_S)
-}
-
-fn assert_sane(s: &ProgressiveSolver) {
-    let name = &s.scene().name;
-    for ambient in [false, true] {
-        for (j, b) in s.element_radiance(ambient).iter().enumerate() {
-            assert!(
-                b.is_finite() && b.min_element() >= 0.0,
-                "{name}: element {j} radiance {b} (ambient {ambient})"
-            );
-        }
-    }
-    let vertex_radiance = s.mesh().vertex_values(&s.element_radiance(true));
-    for (v, b) in vertex_radiance.iter().enumerate() {
-        assert!(
-            b.is_finite() && b.min_element() >= 0.0,
-            "{name}: vertex {v} radiance {b:?}"
-        );
-    }
-}
-
-fn unshot_power(s: &ProgressiveSolver) -> DVec3 {
-    s.unshot()
-        .iter()
-        .zip(&s.mesh().patches)
-        .map(|(u, p)| *u * p.area)
-        .sum()
 }
 
 /// Closed: emitted = absorbed + unshot, to the row-sum error of the form factors (1 %:

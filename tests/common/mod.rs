@@ -135,3 +135,39 @@ pub fn converge_within(
     );
     secs
 }
+
+/// Every element radiance (with and without the ambient term), every incident value and
+/// every display-vertex value is finite and non-negative.
+pub fn assert_sane(s: &nusselt::solver::ProgressiveSolver) {
+    let name = &s.scene().name;
+    for ambient in [false, true] {
+        for (j, b) in s.element_radiance(ambient).iter().enumerate() {
+            assert!(
+                b.is_finite() && b.min_element() >= 0.0,
+                "{name}: element {j} radiance {b} (ambient {ambient})"
+            );
+        }
+    }
+    for (j, h) in s.incident().iter().enumerate() {
+        assert!(
+            h.is_finite() && h.min_element() >= 0.0,
+            "{name}: element {j} incident {h}"
+        );
+    }
+    let vertex_radiance = s.mesh().vertex_values(&s.element_radiance(true));
+    for (v, b) in vertex_radiance.iter().enumerate() {
+        assert!(
+            b.is_finite() && b.min_element() >= 0.0,
+            "{name}: vertex {v} radiance {b:?}"
+        );
+    }
+}
+
+/// Unshot power Σ ΔB·A over patches, per channel.
+pub fn unshot_power(s: &nusselt::solver::ProgressiveSolver) -> DVec3 {
+    s.unshot()
+        .iter()
+        .zip(&s.mesh().patches)
+        .map(|(u, p)| *u * p.area)
+        .sum()
+}
