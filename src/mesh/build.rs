@@ -27,6 +27,17 @@ impl Mesh {
         element_size: f64,
         patch_size: f64,
     ) -> Result<Mesh, MeshError> {
+        Mesh::build_from(scene, &Topology::new(scene), element_size, patch_size)
+    }
+
+    /// [`Mesh::build_with`] on faces already grouped (the grouping does not depend on the
+    /// sizes, so meshing the same scene again reuses it).
+    pub(super) fn build_from(
+        scene: &Scene,
+        topo: &Topology,
+        element_size: f64,
+        patch_size: f64,
+    ) -> Result<Mesh, MeshError> {
         if !(element_size.is_finite() && element_size > 0.0) {
             return Err(MeshError::BadElementSize(element_size));
         }
@@ -48,7 +59,6 @@ impl Mesh {
                 count: estimate as usize,
             });
         }
-        let topo = Topology::new(scene);
         let patch_area = patch_size * patch_size;
         let mut units = Vec::new();
         let mut small: Vec<u32> = Vec::new();

@@ -252,12 +252,13 @@ impl Mesh {
             Some(b) => element_size_for_budget(scene, b),
             None => default_element_size(scene),
         };
+        let topo = surfaces::Topology::new(scene);
         let mut tries = 0;
         loop {
             let patch = patch_size
                 .unwrap_or_else(|| default_patch_size(size))
                 .max(size);
-            let mesh = Mesh::build_with(scene, size, patch)?;
+            let mesh = Mesh::build_from(scene, &topo, size, patch)?;
             let count = mesh.elements.len() as f64;
             tries += 1;
             if count <= 1.15 * target || tries == 3 {
