@@ -45,13 +45,13 @@ pub enum Command {
 pub struct SceneArgs {
     /// OBJ file (with its MTL files next to it).
     pub scene: Option<PathBuf>,
-    /// Built-in scene: cornell or furnace.
+    /// Built-in scene: cornell, furnace or cube (ceiling-lit unit cube, 12 triangles).
     #[arg(long, conflicts_with = "scene")]
     pub builtin: Option<String>,
     /// Treat every face as two-sided (reflects and emits on both sides).
     #[arg(long)]
     pub two_sided: bool,
-    /// Uniform reflectance of the furnace scene.
+    /// Uniform reflectance of the furnace and cube scenes.
     #[arg(long, allow_negative_numbers = true)]
     pub rho: Option<f64>,
 }
@@ -86,8 +86,8 @@ impl SceneArgs {
             (None, None) => bail!("give a scene: an OBJ file or --builtin cornell|furnace"),
             (Some(_), Some(_)) => bail!("give either an OBJ file or --builtin, not both"),
         };
-        if self.rho.is_some() && scene.name != "furnace" {
-            bail!("--rho applies to the furnace scene only");
+        if self.rho.is_some() && scene.name != "furnace" && scene.name != "cube" {
+            bail!("--rho applies to the furnace and cube scenes only");
         }
         for w in &scene.warnings {
             eprintln!("warning: {w}");

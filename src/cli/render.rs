@@ -14,7 +14,7 @@ use super::{MAX_RAYS, MAX_VIS_RAYS, SceneArgs, ViewArgs, check_count, check_outp
 use crate::formfactor::hemicube::ItemBufferRaster;
 use crate::formfactor::{FormFactorMethod, FormFactorParams};
 use crate::render::{self, Image, SolutionView};
-use crate::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+use crate::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
@@ -28,7 +28,7 @@ pub struct RenderArgs {
     /// Element edge length in scene units (default: from the --max-elements budget).
     #[arg(long, allow_negative_numbers = true)]
     pub element_size: Option<f64>,
-    /// Patch (shooter) edge length in scene units (default: 10/3 element sizes).
+    /// Patch (shooter) edge length in scene units (default: 4 element sizes).
     #[arg(long, allow_negative_numbers = true)]
     pub patch_size: Option<f64>,
     /// Element budget that sets the default element size (default 20000; faces smaller
@@ -41,6 +41,20 @@ pub struct RenderArgs {
     /// Stop when remaining unshot power / emitted power falls to this.
     #[arg(long, allow_negative_numbers = true, default_value_t = 1e-4)]
     pub unshot: f64,
+    /// Shoot only the unshot radiance (no overshooting by the ambient estimate).
+    #[arg(long)]
+    pub no_overshoot: bool,
+    /// Solver: shooting (progressive refinement, default), jacobi, gauss-seidel, sor or cg
+    /// (the last four store the form-factor matrix; --unshot is their relative residual).
+    #[arg(long, default_value = "shooting")]
+    pub solver: String,
+    /// SOR relaxation factor in (0, 2) (default: estimated from the first sweeps).
+    #[arg(long, allow_negative_numbers = true)]
+    pub omega: Option<f64>,
+    /// Memory for stored form factors in MiB (default: half of the machine's RAM);
+    /// a gathering or CG matrix that would not fit is refused before any work.
+    #[arg(long)]
+    pub max_memory: Option<u64>,
     /// Stop after this many shots.
     #[arg(long)]
     pub shots: Option<usize>,
@@ -256,17 +270,27 @@ fn render(args: &RenderArgs) -> Result<()> {
         },
         patch_size: args.patch_size,
         max_elements: args.max_elements,
+        overshoot: !args.no_overshoot,
+        row_cache_bytes: max_memory_bytes(args.max_memory)?,
         raster: raster_for(method)?,
         ..Default::default()
     };
     let adapter = config.raster.as_ref().map(|r| r.describe());
     let solve_start = Instant::now();
-    let mut solver = ProgressiveSolver::new(scene, config)?;
+    let kind = SolverKind::parse(&args.solver, args.omega).ok_or_else(|| {
+        anyhow::anyhow!(
+            "unknown --solver '{}' (expected one of: {})",
+            args.solver,
+            SolverKind::NAMES.join(", ")
+        )
+    })?;
+    let problem = Problem::new(scene, config)?;
+    let mut solver = kind.build(problem)?;
     if !args.quiet && !args.json {
-        let m = solver.mesh();
+        let m = &solver.problem().mesh;
         eprintln!(
             "meshed {} faces: {} elements (size {:.4}), {} patches (size {:.4}; {} surfaces merged, {} clusters)",
-            solver.scene().faces.len(),
+            solver.problem().scene.faces.len(),
             m.elements.len(),
             m.element_size,
             m.patches.len(),
@@ -295,23 +319,26 @@ fn render(args: &RenderArgs) -> Result<()> {
     };
     let mut log_error: Option<std::io::Error> = None;
     let never = AtomicBool::new(false);
-    let initial = solver.unshot_fraction().max(1e-300);
-    solver.run(&stop, &never, &mut |r| {
+    let initial = solver.residual().max(1e-300);
+    run_solver(solver.as_mut(), &stop, &never, &mut |r, s| {
         if let Some(w) = log.as_mut()
             && let Err(e) = writeln!(
                 w,
                 "{},{:.6},{:.6e},{:.6e}",
-                r.shot, r.seconds, r.unshot_fraction, r.ambient
+                r.step,
+                r.seconds,
+                r.residual,
+                s.ambient_mean()
             )
         {
             log_error.get_or_insert(e);
         }
         // Progress on a log scale from the start to the target.
         let target = stop.unshot.max(1e-12);
-        let frac = ((initial / r.unshot_fraction.max(1e-300)).ln() / (initial / target).ln())
-            .clamp(0.0, 1.0);
+        let frac =
+            ((initial / r.residual.max(1e-300)).ln() / (initial / target).ln()).clamp(0.0, 1.0);
         pb.set_position((frac * 1000.0) as u64);
-        pb.set_message(format!("{:.2e} shot {}", r.unshot_fraction, r.shot));
+        pb.set_message(format!("{:.2e} step {}", r.residual, r.step));
     });
     pb.finish_and_clear();
     if let Some(e) = log_error {
@@ -324,12 +351,13 @@ fn render(args: &RenderArgs) -> Result<()> {
 
     let render_start = Instant::now();
     let vertex: Vec<_> = solver
-        .mesh()
+        .problem()
+        .mesh
         .vertex_values(&solver.element_radiance(!args.no_ambient));
-    let bvh = render::display_bvh(solver.scene(), solver.mesh());
+    let bvh = render::display_bvh(&solver.problem().scene, &solver.problem().mesh);
     let view = SolutionView {
-        scene: solver.scene(),
-        mesh: solver.mesh(),
+        scene: &solver.problem().scene,
+        mesh: &solver.problem().mesh,
         vertex_radiance: &vertex,
         bvh: &bvh,
     };
@@ -339,7 +367,12 @@ fn render(args: &RenderArgs) -> Result<()> {
 
     let error = match &reference {
         Some(r) => {
-            let mask = render::error_mask(&view, &settings.camera, settings.width, settings.height);
+            let mask = render::error_mask(
+                view.scene,
+                &settings.camera,
+                settings.width,
+                settings.height,
+            );
             Some(render::relative_rms(&image, r, &mask)?)
         }
         None => None,
@@ -348,8 +381,8 @@ fn render(args: &RenderArgs) -> Result<()> {
         let mut w = create(p)?;
         writeln!(w, "patch,area,cx,cy,cz,r,g,b")?;
         let radiance = solver.element_radiance(!args.no_ambient);
-        for (e, b) in solver.mesh().elements.iter().zip(&radiance) {
-            let patch = solver.mesh().patch(e.patch);
+        for (e, b) in solver.problem().mesh.elements.iter().zip(&radiance) {
+            let patch = solver.problem().mesh.patch(e.patch);
             let c = e.centroid;
             writeln!(
                 w,
@@ -360,22 +393,25 @@ fn render(args: &RenderArgs) -> Result<()> {
         w.flush()?;
     }
     let summary = serde_json::json!({
-        "elements": solver.mesh().elements.len(),
-        "patches": solver.mesh().patches.len(),
-        "faces": solver.scene().faces.len(),
-        "element_size": solver.mesh().element_size,
-        "patch_size": solver.mesh().patch_size,
+        "elements": solver.problem().mesh.elements.len(),
+        "patches": solver.problem().mesh.patches.len(),
+        "faces": solver.problem().scene.faces.len(),
+        "element_size": solver.problem().mesh.element_size,
+        "patch_size": solver.problem().mesh.patch_size,
         "camera": [
             settings.camera.eye.x, settings.camera.eye.y, settings.camera.eye.z,
             settings.camera.target.x, settings.camera.target.y, settings.camera.target.z,
             settings.camera.vfov_deg
         ],
-        "vertices": solver.mesh().vertices.len(),
-        "shots": solver.shots(),
+        "vertices": solver.problem().mesh.vertices.len(),
+        "shots": solver.steps(),
+        "solver": solver.name(),
+        "solver_report": solver.report(),
+        "matrix_bytes": solver.matrix_bytes(),
         "solve_seconds": solve_seconds,
         "render_seconds": render_seconds,
         "total_seconds": process_start.elapsed().as_secs_f64(),
-        "unshot_fraction": solver.unshot_fraction(),
+        "unshot_fraction": solver.residual(),
         "error": error,
         "method": method.name(),
         "rasteriser": adapter,
@@ -385,9 +421,9 @@ fn render(args: &RenderArgs) -> Result<()> {
     } else if !args.quiet {
         eprintln!(
             "{} elements, {} shots, unshot {:.2e}, solve {:.3} s, render {:.3} s{}; wrote {}",
-            solver.mesh().elements.len(),
-            solver.shots(),
-            solver.unshot_fraction(),
+            solver.problem().mesh.elements.len(),
+            solver.steps(),
+            solver.residual(),
             solve_seconds,
             render_seconds,
             error
@@ -397,6 +433,23 @@ fn render(args: &RenderArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// `--max-memory` in bytes, or half of the machine's RAM (512 MiB if unknown).
+fn max_memory_bytes(mib: Option<u64>) -> Result<usize> {
+    match mib {
+        Some(0) => bail!("--max-memory must be at least 1 (MiB)"),
+        Some(m) => Ok(usize::try_from(m.saturating_mul(1 << 20)).unwrap_or(usize::MAX)),
+        None => Ok(physical_memory_bytes().map_or(512 << 20, |b| b / 2)),
+    }
+}
+
+/// Total RAM from /proc/meminfo (Linux); `None` elsewhere.
+fn physical_memory_bytes() -> Option<usize> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kb: usize = line.split_whitespace().nth(1)?.parse().ok()?;
+    kb.checked_mul(1024)
 }
 
 pub fn run_reference(args: &ReferenceArgs) -> Result<()> {
@@ -454,17 +507,7 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
         Some(text) => crate::scene::Camera::parse(text).context("--camera")?,
         None => crate::render::view::default_camera(&scene),
     };
-    let size = crate::mesh::default_patch_size(crate::mesh::default_element_size(&scene));
-    let mesh = crate::mesh::Mesh::build_with(&scene, size, size)?;
-    let bvh = render::display_bvh(&scene, &mesh);
-    let zeros = vec![crate::scene::Rgb::ZERO; mesh.vertices.len()];
-    let view = SolutionView {
-        scene: &scene,
-        mesh: &mesh,
-        vertex_radiance: &zeros,
-        bvh: &bvh,
-    };
-    let mask = render::error_mask(&view, &camera, reference.width, reference.height);
+    let mask = render::error_mask(&scene, &camera, reference.width, reference.height);
     let error = render::relative_rms(&image, &reference, &mask)?;
     let pixels = mask.iter().filter(|m| **m).count();
     println!("{}", serde_json::json!({"error": error, "pixels": pixels}));

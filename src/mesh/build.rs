@@ -1,6 +1,8 @@
 //! Building a [`Mesh`]: meshing units (a convex surface outline, a large face, or a
 //! cluster of small faces) into patches and elements.
 
+use std::collections::{HashMap, HashSet};
+
 use glam::DVec3;
 
 use super::surfaces::Topology;
@@ -12,8 +14,10 @@ use crate::scene::Scene;
 enum Unit {
     /// A planar polygon (a surface's convex outline or one face), cut into patches.
     Polygon { poly: Vec<DVec3>, face: usize },
-    /// Small faces shooting together as one patch.
-    Cluster { faces: Vec<u32> },
+    /// Small faces shooting together as one patch: the polygons to mesh (a face, or the
+    /// convex outline of a small planar surface whose faces all fell in this cluster) and
+    /// the face each stands for.
+    Cluster { parts: Vec<(Vec<DVec3>, usize)> },
 }
 
 /// A triangle with `longest² / area` above this is a sliver (equilateral: 2.3, right
@@ -62,6 +66,7 @@ impl Mesh {
         let patch_area = patch_size * patch_size;
         let mut units = Vec::new();
         let mut small: Vec<u32> = Vec::new();
+        let mut small_outline: HashMap<u32, (Vec<DVec3>, usize)> = HashMap::new();
         let mut surface_count = 0;
         for members in topo.planar_members() {
             let f0 = members[0] as usize;
@@ -72,7 +77,15 @@ impl Mesh {
                 && let Some(poly) = topo.convex_outline(scene, &members)
             {
                 surface_count += 1;
-                units.push(Unit::Polygon { poly, face: f0 });
+                if polygon::area(&poly) >= 0.5 * patch_area {
+                    units.push(Unit::Polygon { poly, face: f0 });
+                } else {
+                    // A small surface (the two triangles of a sphere's quad): its faces
+                    // are clustered like small faces, and meshed as the outline when they
+                    // land in one cluster together.
+                    small_outline.insert(topo.planar[f0], (poly, members.len()));
+                    small.extend_from_slice(&members);
+                }
                 continue;
             }
             for &f in &members {
@@ -101,7 +114,9 @@ impl Mesh {
                     next_occluder += 1;
                 }
             }
-            units.push(Unit::Cluster { faces });
+            units.push(Unit::Cluster {
+                parts: cluster_parts(scene, topo, &small_outline, &faces),
+            });
         }
 
         let mut patches = Vec::new();
@@ -147,26 +162,26 @@ impl Mesh {
                             ));
                         }
                     }
-                    Unit::Cluster { faces } => {
+                    Unit::Cluster { parts } => {
                         let pid = PatchId(patches.len() as u32);
                         let first = elements.len();
-                        for &f in faces {
-                            let mut poly = scene.faces[f as usize].vertices.clone();
+                        for (poly, f) in parts {
+                            let mut poly = poly.clone();
                             if back {
                                 poly.reverse();
                             }
                             let Some(n) = polygon::normal(&poly) else {
                                 continue;
                             };
-                            push_elements(&poly, n, element_size, pid, f as usize, &mut elements);
-                            element_group.resize(elements.len(), group(f as usize));
+                            push_elements(&poly, n, element_size, pid, *f, &mut elements);
+                            element_group.resize(elements.len(), group(*f));
                         }
                         if elements.len() == first {
                             continue;
                         }
-                        let f0 = faces[0] as usize;
-                        let patch = if faces.len() == 1 {
-                            let mut poly = scene.faces[f0].vertices.clone();
+                        let f0 = parts[0].1;
+                        let patch = if parts.len() == 1 {
+                            let mut poly = parts[0].0.clone();
                             if back {
                                 poly.reverse();
                             }
@@ -217,6 +232,35 @@ impl Mesh {
         mesh.build_vertex_weights();
         Ok(mesh)
     }
+}
+
+/// The polygons a cluster of faces is meshed as: each small planar surface whose faces
+/// all fell in the cluster as its outline (no element edge along its triangulation), every
+/// other face as itself. Order follows the faces.
+fn cluster_parts(
+    scene: &Scene,
+    topo: &Topology,
+    small_outline: &HashMap<u32, (Vec<DVec3>, usize)>,
+    faces: &[u32],
+) -> Vec<(Vec<DVec3>, usize)> {
+    let mut count: HashMap<u32, usize> = HashMap::new();
+    for &f in faces {
+        *count.entry(topo.planar[f as usize]).or_default() += 1;
+    }
+    let mut done: HashSet<u32> = HashSet::new();
+    let mut parts = Vec::new();
+    for &f in faces {
+        let surface = topo.planar[f as usize];
+        match small_outline.get(&surface) {
+            Some((outline, members)) if count[&surface] == *members => {
+                if done.insert(surface) {
+                    parts.push((outline.clone(), f as usize));
+                }
+            }
+            _ => parts.push((scene.faces[f as usize].vertices.clone(), f as usize)),
+        }
+    }
+    parts
 }
 
 fn push_elements(

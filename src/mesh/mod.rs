@@ -37,12 +37,14 @@ pub struct PatchId(pub u32);
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct ElementId(pub u32);
 
-/// Patch edge length in element sizes (40 mm patches over 12 mm elements in the Cornell
+/// Patch edge length in element sizes (48 mm patches over 12 mm elements in the Cornell
 /// box). Patches shoot with their area-averaged unshot radiance, so a patch much larger than
 /// the scale on which radiance varies spreads light wrongly: whole-wall patches put the
-/// Cornell box 19 % off a path tracer, 96 mm patches 2.6 %, 40 mm patches 1.9 % (with 12 mm
-/// elements).
-pub const PATCH_ELEMENTS: f64 = 10.0 / 3.0;
+/// Cornell box 19 % off a path tracer, 96 mm patches 2.6 %. With 12 mm elements (image error
+/// against `benches/data/cornell_256_ref.pfm`, `--unshot 1e-4`, CPU seconds on 2 cores):
+/// 40 mm patches 1.67 % in 12.3 s, 48 mm 1.78 % in 9.2 s, 60 mm 1.90 % in 7.1 s. Every patch
+/// costs one form-factor row, the bulk of a solve's time.
+pub const PATCH_ELEMENTS: f64 = 4.0;
 
 /// Elements the default element size aims at for the whole scene (both sides of a
 /// two-sided scene count). The Cornell box gets about 19,000 at 11.8 mm, within 2 % of a

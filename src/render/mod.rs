@@ -169,7 +169,20 @@ pub fn render_solution(view: &SolutionView, settings: &RenderSettings) -> Image 
 /// eight neighbours hits the background or a light source. The one-pixel margin keeps out
 /// pixels that a light covers by a sliver too thin for the grid, whose value would be
 /// dominated by the light's radiance.
-pub fn error_mask(view: &SolutionView, camera: &Camera, width: u32, height: u32) -> Vec<bool> {
+pub fn error_mask(scene: &Scene, camera: &Camera, width: u32, height: u32) -> Vec<bool> {
+    // The scene's own faces, not a mesh: the mask is the same whatever the mesh of the
+    // image (`render --reference` and `compare` agree to the pixel).
+    let mut triangles = Vec::new();
+    for (k, f) in scene.faces.iter().enumerate() {
+        for t in crate::geometry::polygon::triangulate(&f.vertices) {
+            triangles.push(crate::geometry::bvh::TriangleInput {
+                vertices: [f.vertices[t[0]], f.vertices[t[1]], f.vertices[t[2]]],
+                id: k as u32,
+                cull_back: false,
+            });
+        }
+    }
+    let bvh = Bvh::build(&triangles);
     let (w, h) = (width as usize, height as usize);
     let mut surface_only = vec![false; w * h];
     surface_only
@@ -181,7 +194,11 @@ pub fn error_mask(view: &SolutionView, camera: &Camera, width: u32, height: u32)
                     let sx = x as f64 + ((k % 8) as f64 + 0.5) / 8.0;
                     let sy = y as f64 + ((k / 8) as f64 + 0.5) / 8.0;
                     let ray = Ray::new(camera.eye, camera.ray_dir(sx, sy, width, height));
-                    matches!(shade(view, &ray), FirstHit::Surface(_))
+                    bvh.closest_hit(&ray, 0.0, f64::INFINITY)
+                        .is_some_and(|hit| {
+                            let face = &scene.faces[hit.id as usize];
+                            !scene.materials[face.material.0 as usize].is_emitter()
+                        })
                 });
             }
         });

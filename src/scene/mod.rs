@@ -93,7 +93,7 @@ pub enum SceneError {
     },
     #[error("{file}: {message}")]
     Invalid { file: String, message: String },
-    #[error("unknown built-in scene '{0}' (available: cornell, furnace)")]
+    #[error("unknown built-in scene '{0}' (available: cornell, furnace, cube)")]
     UnknownBuiltin(String),
     #[error("bad camera {0}")]
     Camera(String),
@@ -103,9 +103,10 @@ const CORNELL_OBJ: &str = include_str!("../../assets/cornell.obj");
 const CORNELL_MTL: &str = include_str!("../../assets/cornell.mtl");
 const FURNACE_OBJ: &str = include_str!("../../assets/furnace.obj");
 const FURNACE_MTL: &str = include_str!("../../assets/furnace.mtl");
+const CUBE_OBJ: &str = include_str!("../../assets/cube.obj");
 
 /// Names of the built-in scenes.
-pub const BUILTINS: &[&str] = &["cornell", "furnace"];
+pub const BUILTINS: &[&str] = &["cornell", "furnace", "cube"];
 
 impl Scene {
     /// Loads an OBJ file and the MTL files it names (relative to the OBJ's folder).
@@ -165,7 +166,9 @@ impl Scene {
         Ok(scene)
     }
 
-    /// A built-in scene by name: `cornell` or `furnace`.
+    /// A built-in scene by name: `cornell`, `furnace` (every face emits 1 and reflects
+    /// `opts.rho`, default 0.9) or `cube` (12 triangles, the ceiling emits 1, every face
+    /// reflects `opts.rho`, default 0.5).
     pub fn builtin(name: &str, opts: &LoadOptions) -> Result<Scene, SceneError> {
         match name {
             "cornell" => {
@@ -196,6 +199,26 @@ impl Scene {
                 )?;
                 let _ = FURNACE_MTL;
                 s.name = "furnace".into();
+                s.camera = Some(Camera {
+                    eye: DVec3::new(0.5, 0.5, 0.98),
+                    target: DVec3::new(0.5, 0.5, 0.0),
+                    vfov_deg: 70.0,
+                });
+                Ok(s)
+            }
+            "cube" => {
+                let rho = opts.rho.unwrap_or(0.5);
+                if !rho.is_finite() || rho < 0.0 {
+                    return Err(SceneError::Invalid {
+                        file: "cube".into(),
+                        message: format!("--rho must be a finite number >= 0, got {rho}"),
+                    });
+                }
+                let mtl = format!(
+                    "newmtl wall\nKd {rho} {rho} {rho}\nnewmtl light\nKd {rho} {rho} {rho}\nKe 1 1 1\n"
+                );
+                let mut s = Scene::from_obj_str("cube.obj", CUBE_OBJ, &[("cube.mtl", &mtl)], opts)?;
+                s.name = "cube".into();
                 s.camera = Some(Camera {
                     eye: DVec3::new(0.5, 0.5, 0.98),
                     target: DVec3::new(0.5, 0.5, 0.0),

@@ -1,0 +1,150 @@
+//! What every solver works on: the scene, its mesh, the visibility hierarchy, and the
+//! settings of the form factors. Built once per scene and mesh; solvers hold one.
+
+use std::sync::Arc;
+
+use crate::formfactor::hemicube::ItemBufferRaster;
+use crate::formfactor::{FormFactorMethod, RowContext};
+use crate::geometry::Bvh;
+use crate::mesh::{self, Mesh, PatchId};
+use crate::scene::{Material, Rgb, Scene};
+
+use super::{SolverConfig, SolverError, check_power};
+
+/// A scene meshed for solving (see the module docs of [`crate::solver`]).
+pub struct Problem {
+    pub scene: Scene,
+    pub config: SolverConfig,
+    pub mesh: Mesh,
+    pub bvh: Bvh,
+    /// Offset of shadow-ray end points from their surfaces (scene units).
+    pub epsilon: f64,
+}
+
+impl Problem {
+    /// Meshes `scene` by `config` (element size, budget, patch size) and builds the BVH.
+    /// Refuses a light whose power would overflow ([`SolverError::PowerOverflow`]) and the
+    /// GPU hemicube without a rasteriser.
+    pub fn new(scene: Scene, config: SolverConfig) -> Result<Self, SolverError> {
+        if config.method == FormFactorMethod::GpuHemicube && config.raster.is_none() {
+            return Err(SolverError::NoRaster);
+        }
+        let mesh = match config.element_size {
+            Some(size) => {
+                let patch = config
+                    .patch_size
+                    .unwrap_or_else(|| mesh::default_patch_size(size))
+                    .max(size);
+                Mesh::build_with(&scene, size, patch)?
+            }
+            None => Mesh::build_for_budget(&scene, config.max_elements, config.patch_size)?,
+        };
+        Self::with_mesh(scene, config, mesh)
+    }
+
+    /// A problem on a mesh already built for `scene`.
+    pub fn with_mesh(scene: Scene, config: SolverConfig, mesh: Mesh) -> Result<Self, SolverError> {
+        check_power(&scene.materials, &mesh)?;
+        let bvh = Bvh::build(&mesh.blocker_triangles(&scene));
+        let epsilon = 1e-6 * mesh.bounds().diagonal().max(1e-12);
+        Ok(Self {
+            scene,
+            config,
+            mesh,
+            bvh,
+            epsilon,
+        })
+    }
+
+    /// Rebuilds the mesh with a new element size (and the BVH's visibility groups).
+    pub fn remesh(&mut self, element_size: f64) -> Result<(), SolverError> {
+        let patch = self
+            .config
+            .patch_size
+            .unwrap_or_else(|| mesh::default_patch_size(element_size))
+            .max(element_size);
+        let mesh = Mesh::build_with(&self.scene, element_size, patch)?;
+        check_power(&self.scene.materials, &mesh)?;
+        self.bvh = Bvh::build(&mesh.blocker_triangles(&self.scene));
+        self.mesh = mesh;
+        self.config.element_size = Some(element_size);
+        Ok(())
+    }
+
+    pub fn material_of(&self, patch: PatchId) -> &Material {
+        &self.scene.materials[self.mesh.patch(patch).material.0 as usize]
+    }
+
+    /// Reflectance of each element's material.
+    pub fn element_reflectance(&self) -> Vec<Rgb> {
+        self.mesh
+            .elements
+            .iter()
+            .map(|e| self.material_of(e.patch).reflectance)
+            .collect()
+    }
+
+    /// Σ |E_i| A_i over patches (channel sums): the power the lights put in.
+    pub fn emitted_power(&self) -> f64 {
+        self.mesh
+            .patches
+            .iter()
+            .map(|p| {
+                super::channel_sum(self.scene.materials[p.material.0 as usize].emission) * p.area
+            })
+            .sum()
+    }
+
+    /// What a form-factor row sees (scene, mesh, BVH, parameters, offset, rasteriser).
+    pub fn row_context(&self) -> RowContext<'_> {
+        RowContext {
+            scene: &self.scene,
+            mesh: &self.mesh,
+            bvh: &self.bvh,
+            params: &self.config.formfactor,
+            epsilon: self.epsilon,
+            raster: self.config.raster.as_deref(),
+        }
+    }
+
+    /// Installs the rasteriser used by `gpu-hemicube` rows.
+    pub fn set_raster(&mut self, raster: Option<Arc<dyn ItemBufferRaster>>) {
+        self.config.raster = raster;
+    }
+
+    /// Checks a new reflectance and emission for material `idx` and installs them.
+    pub fn set_material(
+        &mut self,
+        idx: usize,
+        reflectance: Rgb,
+        emission: Rgb,
+    ) -> Result<(), SolverError> {
+        if idx >= self.scene.materials.len() {
+            return Err(SolverError::NoSuchMaterial(idx as u32));
+        }
+        let max = crate::scene::MAX_REFLECTANCE;
+        if !reflectance.is_finite()
+            || reflectance.min_element() < 0.0
+            || reflectance.max_element() > max
+        {
+            return Err(SolverError::BadValue {
+                what: "reflectance",
+                range: "in [0, 0.999]",
+                value: reflectance.to_array(),
+            });
+        }
+        if !emission.is_finite() || emission.min_element() < 0.0 {
+            return Err(SolverError::BadValue {
+                what: "emission",
+                range: ">= 0",
+                value: emission.to_array(),
+            });
+        }
+        let mut candidate = self.scene.materials.clone();
+        candidate[idx].reflectance = reflectance;
+        candidate[idx].emission = emission;
+        check_power(&candidate, &self.mesh)?;
+        self.scene.materials = candidate;
+        Ok(())
+    }
+}
