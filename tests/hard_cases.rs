@@ -122,7 +122,11 @@ const CONTACT_H: f64 = 0.05;
 const CONTACT_PATCH: f64 = 0.1;
 
 fn contact_solve(file: &str, scale: f64) -> ProgressiveSolver {
-    let mut s = solver(load(file), CONTACT_H * scale, CONTACT_PATCH * scale);
+    contact_solve_with(file, scale, CONTACT_PATCH)
+}
+
+fn contact_solve_with(file: &str, scale: f64, patch: f64) -> ProgressiveSolver {
+    let mut s = solver(load(file), CONTACT_H * scale, patch * scale);
     converge(&mut s, 1e-3);
     assert_sane(&s);
     assert_closed_balance(&s);
@@ -224,7 +228,7 @@ fn boxes_resting_on_the_floor_leave_it_dark_underneath() {
 }
 
 #[test]
-#[ignore = "open defect of issue 11: light reaches the floor under a box lifted by a gap (19.7 % of the floor mean at depth 0.075, the same for gaps 1e-2, 1e-4, 1e-6; the contact case is fixed) - cargo nextest run --run-ignored all --test hard_cases gaps"]
+#[ignore = "open defect of issue 11, in the mesh/solver, not the form factors: 19.7 % of the floor mean at depth 0.075 for gaps 1e-2, 1e-4, 1e-6 comes from patch averaging - floor patches (0.1 grid) straddle the footprint lines (0.15, 0.45, ...), shoot their area-mean unshot radiance from their whole polygon, so the half under the box lights the box bottom at F ~ 1 from 1e-4 away, and the bottom patch passes it to the floor under it; the rows themselves are right (floor under the box: F = 1.0 to the bottom, 1e-18 to the light) and with patches on the footprint lines the case passes (gaps_under_boxes_are_dark_when_patches_follow_the_footprints). Fix: patch boundaries along contact/near-contact lines, or near-field shooting per element - cargo nextest run --run-ignored all --test hard_cases gaps"]
 fn gaps_under_boxes_let_in_only_what_the_slit_allows() {
     let mut failures = Vec::new();
     for (file, gap) in [
@@ -233,6 +237,29 @@ fn gaps_under_boxes_let_in_only_what_the_slit_allows() {
         ("contact_1e-6.obj", 1e-6),
     ] {
         let s = contact_solve(file, 1.0);
+        if let Err(e) = dark_under_boxes(&s, gap) {
+            failures.push(e);
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The same slit bound with shooting patches one element in size (0.05): every patch edge
+/// then lies on the footprints' lines (0.15, 0.45, 0.5, 0.55, 0.8, 0.85 are multiples of
+/// 0.05), so no patch has part of its area under a box and part outside. This isolates the
+/// form factors and their visibility (the rows between the floor and a box's bottom, the
+/// slit's shadows) from the patch averaging that the ignored test above trips on: light
+/// through a blocker, a shaft that drops the box, or a lifted ray end point slipping under
+/// the bottom face would all put light here.
+#[test]
+fn gaps_under_boxes_are_dark_when_patches_follow_the_footprints() {
+    let mut failures = Vec::new();
+    for (file, gap) in [
+        ("contact_1e-2.obj", 1e-2),
+        ("contact_1e-4.obj", 1e-4),
+        ("contact_1e-6.obj", 1e-6),
+    ] {
+        let s = contact_solve_with(file, 1.0, CONTACT_H);
         if let Err(e) = dark_under_boxes(&s, gap) {
             failures.push(e);
         }
