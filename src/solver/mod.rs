@@ -197,6 +197,13 @@ fn channel_sum(c: Rgb) -> f64 {
 /// rows that break it grossly, and scales them back to delivering exactly the shot.
 const MAX_ROW_GAIN: f64 = 1.01;
 
+/// Patches whose unshot powers are within this relative difference are tied for the next
+/// shot and the first in index order wins. Symmetric patches have equal powers up to the
+/// round-off of their coordinates, which differs with the scene's unit: breaking such ties
+/// by that round-off made the same scene at scale 1, 1e-3 and 1e4 shoot in different orders
+/// (issue 11: a different shot count at `--unshot 1e-3` and images 1.8e-4 apart).
+const SHOOTER_TIE: f64 = 1e-9;
+
 fn conserve_energy(mesh: &Mesh, shooter: PatchId, row: &mut [f32]) {
     let area = mesh.patch(shooter).area;
     let delivered: f64 = row
@@ -413,7 +420,7 @@ impl ProgressiveSolver {
         let mut best: Option<(f64, usize)> = None;
         for (i, (u, p)) in self.unshot.iter().zip(&self.mesh.patches).enumerate() {
             let power = channel_sum(*u) * p.area;
-            if power > 0.0 && best.is_none_or(|b| power > b.0) {
+            if power > 0.0 && best.is_none_or(|b| power > b.0 * (1.0 + SHOOTER_TIE)) {
                 best = Some((power, i));
             }
         }
