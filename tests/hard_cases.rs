@@ -114,7 +114,9 @@ const FOOTPRINTS: [[f64; 4]; 2] = [[0.15, 0.15, 0.45, 0.45], [0.55, 0.5, 0.85, 0
 fn depth_inside(x: f64, z: f64) -> Option<f64> {
     FOOTPRINTS.iter().find_map(|f| {
         let d = (x - f[0]).min(f[2] - x).min(z - f[1]).min(f[3] - z);
-        (d > 0.0).then_some(d)
+        // An element corner on a footprint line is outside at every scale (not inside by
+        // the last bit of a coordinate divided by the scale).
+        (d > 1e-9).then_some(d)
     })
 }
 
@@ -122,7 +124,11 @@ const CONTACT_H: f64 = 0.05;
 const CONTACT_PATCH: f64 = 0.1;
 
 fn contact_solve(file: &str, scale: f64) -> ProgressiveSolver {
-    let mut s = solver(load(file), CONTACT_H * scale, CONTACT_PATCH * scale);
+    contact_solve_with(file, scale, CONTACT_PATCH)
+}
+
+fn contact_solve_with(file: &str, scale: f64, patch: f64) -> ProgressiveSolver {
+    let mut s = solver(load(file), CONTACT_H * scale, patch * scale);
     converge(&mut s, 1e-3);
     assert_sane(&s);
     assert_closed_balance(&s);
@@ -139,7 +145,10 @@ fn contact_solve(file: &str, scale: f64) -> ProgressiveSolver {
 /// d through the parallel-plate kernel gap²/(π r⁴) ≤ gap²/(π d⁴), negligible, and the rest
 /// of it obeys the same (gap/d')² bound, so the floor–bottom inter-reflections add at most a
 /// factor 1/(1 − ρ) = 2: H(point) ≤ 2 (gap/d)² · L_max. At contact (gap 0) that is 0.
-fn dark_under_boxes(s: &ProgressiveSolver, gap: f64) -> Result<(), String> {
+///
+/// `scale` is the factor the scene's coordinates were multiplied by (the footprints and
+/// `gap` are given at scale 1).
+fn dark_under_boxes(s: &ProgressiveSolver, gap: f64, scale: f64) -> Result<(), String> {
     let name = &s.scene().name;
     let radiance = s.element_radiance(false);
     let l_max = s
@@ -165,8 +174,11 @@ fn dark_under_boxes(s: &ProgressiveSolver, gap: f64) -> Result<(), String> {
             continue;
         }
         // Elements wholly inside a footprint (every corner inside, centroid at depth d).
-        let inside = e.corners().iter().all(|c| depth_inside(c.x, c.z).is_some());
-        let Some(d) = depth_inside(e.centroid.x, e.centroid.z) else {
+        let inside = e
+            .corners()
+            .iter()
+            .all(|c| depth_inside(c.x / scale, c.z / scale).is_some());
+        let Some(d) = depth_inside(e.centroid.x / scale, e.centroid.z / scale) else {
             continue;
         };
         if !inside {
@@ -188,8 +200,8 @@ fn dark_under_boxes(s: &ProgressiveSolver, gap: f64) -> Result<(), String> {
                         "{} element at ({:.3}, {:.3}), depth {d:.3}: incident {h:.4e} = {:.1} % \
                          of the floor's mean {floor_mean:.4e}, bound {bound:.3e}",
                         if floor { "floor" } else { "box bottom" },
-                        e.centroid.x,
-                        e.centroid.z,
+                        e.centroid.x / scale,
+                        e.centroid.z / scale,
                         100.0 * h / floor_mean,
                     ),
                 ));
@@ -218,13 +230,13 @@ fn dark_under_boxes(s: &ProgressiveSolver, gap: f64) -> Result<(), String> {
 #[test]
 fn boxes_resting_on_the_floor_leave_it_dark_underneath() {
     let s = contact_solve("contact_0.obj", 1.0);
-    if let Err(e) = dark_under_boxes(&s, 0.0) {
+    if let Err(e) = dark_under_boxes(&s, 0.0, 1.0) {
         panic!("{e}");
     }
 }
 
 #[test]
-#[ignore = "open defect of issue 11: light reaches the floor under a box lifted by a gap (19.7 % of the floor mean at depth 0.075, the same for gaps 1e-2, 1e-4, 1e-6; the contact case is fixed) - cargo nextest run --run-ignored all --test hard_cases gaps"]
+#[ignore = "open defect of issue 11, in the mesh/solver, not the form factors: 19.7 % of the floor mean at depth 0.075 for gaps 1e-2, 1e-4, 1e-6 comes from patch averaging - floor patches (0.1 grid) straddle the footprint lines (0.15, 0.45, ...), shoot their area-mean unshot radiance from their whole polygon, so the half under the box lights the box bottom at F ~ 1 from 1e-4 away, and the bottom patch passes it to the floor under it; the rows themselves are right (floor under the box: F = 1.0 to the bottom, 1e-18 to the light) and with patches on the footprint lines the case passes (gaps_under_boxes_are_dark_when_patches_follow_the_footprints). Fix: patch boundaries along contact/near-contact lines, or near-field shooting per element - cargo nextest run --run-ignored all --test hard_cases gaps"]
 fn gaps_under_boxes_let_in_only_what_the_slit_allows() {
     let mut failures = Vec::new();
     for (file, gap) in [
@@ -233,7 +245,30 @@ fn gaps_under_boxes_let_in_only_what_the_slit_allows() {
         ("contact_1e-6.obj", 1e-6),
     ] {
         let s = contact_solve(file, 1.0);
-        if let Err(e) = dark_under_boxes(&s, gap) {
+        if let Err(e) = dark_under_boxes(&s, gap, 1.0) {
+            failures.push(e);
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The same slit bound with shooting patches one element in size (0.05): every patch edge
+/// then lies on the footprints' lines (0.15, 0.45, 0.5, 0.55, 0.8, 0.85 are multiples of
+/// 0.05), so no patch has part of its area under a box and part outside. This isolates the
+/// form factors and their visibility (the rows between the floor and a box's bottom, the
+/// slit's shadows) from the patch averaging that the ignored test above trips on: light
+/// through a blocker, a shaft that drops the box, or a lifted ray end point slipping under
+/// the bottom face would all put light here.
+#[test]
+fn gaps_under_boxes_are_dark_when_patches_follow_the_footprints() {
+    let mut failures = Vec::new();
+    for (file, gap) in [
+        ("contact_1e-2.obj", 1e-2),
+        ("contact_1e-4.obj", 1e-4),
+        ("contact_1e-6.obj", 1e-6),
+    ] {
+        let s = contact_solve_with(file, 1.0, CONTACT_H);
+        if let Err(e) = dark_under_boxes(&s, gap, 1.0) {
             failures.push(e);
         }
     }
@@ -299,7 +334,6 @@ fn contact_and_a_gap_of_1e_6_agree_on_every_visible_surface() {
 /// dimensionless; the only scale-dependent quantities are tolerances, which must be relative.
 /// 1e-6 relative allows f32 row storage (6e-8) summed over a few thousand shots.
 #[test]
-#[ignore = "open defect of issue 11: meshes now match across scales, radiance differs by 3.9e-5 relative at scale 1e-3, cause not yet found (suspected: f32 BVH rounding flipping a visibility decision) - cargo nextest run --run-ignored all --test hard_cases contact_scene"]
 fn contact_scene_radiance_is_the_same_at_scale_1e_3_and_1e4() {
     let one = contact_solve("contact_0.obj", 1.0);
     let reference = one.element_radiance(false);
@@ -328,7 +362,7 @@ fn contact_scene_radiance_is_the_same_at_scale_1e_3_and_1e4() {
                 "{file}: element {j}: {a} at scale {scale} vs {b} at scale 1"
             );
         }
-        if let Err(e) = dark_under_boxes(&s, 0.0) {
+        if let Err(e) = dark_under_boxes(&s, 0.0, scale) {
             panic!("{file}: {e}");
         }
     }

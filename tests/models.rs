@@ -326,7 +326,6 @@ fn nusselt(args: &[&str]) -> String {
 /// the unit, so only a tolerance or offset that is not relative to the scene could make them
 /// differ. 1e-6 leaves room for f32 form-factor rows (6e-8) accumulated over the shots.
 #[test]
-#[ignore = "open defect of issue 11: the image at scale 1e-3 differs by 1.8e-4 relative at one pixel, cause not yet found (suspected: f32 BVH rounding) - cargo nextest run --run-ignored all --test models scale_series"]
 fn scale_series_renders_the_same_image() {
     let dir = tempfile::tempdir().expect("tempdir");
     let mut images = Vec::new();
@@ -398,6 +397,59 @@ fn scale_series_renders_the_same_image() {
             reference.pixels[worst.1],
             worst.0
         );
+    }
+}
+
+/// The scale series through the library: the same patches shoot in the same order at
+/// every scale, to `--unshot 1e-3`, and the unshot fraction follows the same path (to 1e-9
+/// relative, far above the 1e-16 round-off of the coordinates, far below what one shot
+/// changes). Symmetric patches have equal unshot powers up to round-off, so a choice that
+/// breaks their ties by the last bit diverged after 4 shots at scale 1e-3 and at the first
+/// shot at scale 1e4 (and then stopped after another number of shots).
+#[test]
+fn scale_series_shoots_the_same_patches_in_the_same_order() {
+    let diag = (4f64 * 4.0 + 3.0 * 3.0 + 4.0 * 4.0).sqrt();
+    let run = |tag: &str, scale: f64| {
+        let scene = Scene::load_obj(
+            &model(&format!("scaled_{tag}.obj")),
+            &LoadOptions::default(),
+        )
+        .unwrap_or_else(|e| panic!("scaled_{tag}: {e}"));
+        let mut s = ProgressiveSolver::new(
+            scene,
+            SolverConfig {
+                element_size: Some(diag / 25.0 * scale),
+                patch_size: Some(diag / 8.0 * scale),
+                ..Default::default()
+            },
+        )
+        .unwrap_or_else(|e| panic!("scaled_{tag}: {e}"));
+        let cancel = AtomicBool::new(false);
+        let mut path = Vec::new();
+        while s.unshot_fraction() > 1e-3 && path.len() < 10_000 {
+            let fraction = s.unshot_fraction();
+            let shooter = s.shoot(&cancel).expect("power left to shoot");
+            path.push((shooter.0, fraction));
+        }
+        path
+    };
+    let one = run("1", 1.0);
+    for (tag, scale) in [("1e-3", 1e-3), ("1e4", 1e4)] {
+        let other = run(tag, scale);
+        assert_eq!(other.len(), one.len(), "scale {tag}: shot count");
+        for (n, (a, b)) in one.iter().zip(&other).enumerate() {
+            assert_eq!(
+                a.0, b.0,
+                "scale {tag}: shot {n} from patch {} vs {}",
+                b.0, a.0
+            );
+            assert!(
+                (a.1 - b.1).abs() <= 1e-9 * a.1,
+                "scale {tag}: shot {n}: unshot fraction {} vs {}",
+                b.1,
+                a.1
+            );
+        }
     }
 }
 
@@ -518,7 +570,7 @@ fn write_terrain(dir: &Path, n: usize) -> PathBuf {
 const LARGE_N: usize = 100;
 
 #[test]
-#[ignore = "open defect of issue 11: the 20k-triangle terrain converges in 55 s (debug) but loses 3.8 % of the power (absorbed + unshot < emitted) - cargo nextest run --run-ignored all --test models large_terrain"]
+#[ignore = "open defect of issue 11: the 20k-triangle terrain loses 3.8 % of the power (absorbed + unshot < emitted). Cause measured: form-factor rows that sum to < 1 in the closed room - corner wall triangles 0.74 (one at n = 30: contour 0.831, exact element-integrated rows 1.000; the adjacent wall's elements get 0.19 of its light by their centroids, 0.34 integrated), terrain cluster proxies 0.59-0.86; lost power 2.1 % through wall rows, 1.7 % through ground rows: the centroid (midpoint) rule on receivers next to the shooter, not visibility. Tried: near-field receivers (within 2 element radii of the shooter polygon) averaged over 4x4 sub-cells: imbalance 3.8 % -> 0.25 %, but it breaks solver::furnace_converges_to_e_over_one_minus_rho (average 2.0031 vs 2 after a sweep): a receiver sampled at one point has sum_i F_ji = 1 exactly (its hemisphere is tiled by the patches), which the furnace identity relies on; averaging it over sub-cells for near shooters only breaks that. The deficit is the centroid rule's non-reciprocity (rows of bright corner shooters < 1, the compensating rows > 1 belong to patches that shoot less, and rows > 1.01 are clipped); a fix must integrate each receiver the same way for every shooter (per-element quadrature chosen once, e.g. sub-cells for elements near another surface) or use element-integrated rows (the exact method gets 1.000); patch of the attempt in /work/wt/defects11-nearfield.patch. Also: not converged within 60 s debug on the loaded machine even without it (4,623 shots, unshot 1.5e-2) - cargo nextest run --run-ignored all --test models large_terrain"]
 fn large_terrain_model_converges() {
     let dir = tempfile::tempdir().expect("tempdir");
     let path = write_terrain(dir.path(), LARGE_N);

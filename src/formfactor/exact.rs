@@ -434,15 +434,31 @@ fn shadow_on_piece(
     Some(projected)
 }
 
+/// A hole whose doubled area is at most this times the piece's longest edge squared is
+/// none: leaving it out changes the visible area by at most that fraction.
+const DEGENERATE_HOLE: f64 = 1e-12;
+
 /// `piece` minus convex `hole` (both convex, in one plane, counter-clockwise about `sn`):
 /// up to one convex piece per edge of the hole.
+///
+/// Tolerances are relative to the piece (the hole lies inside it): a hole of no area (a
+/// point or a segment left by clipping a shadow that only touches the piece) hides nothing
+/// and is not subtracted, since its edges have no reliable outward side. Measured against
+/// the hole's own size instead, a point-like shadow (all edges ~1e-12 of the piece) kept
+/// its edges, their outward sides pointed anywhere, and the "outside" parts overlapped: the
+/// piece came back up to 3 times over (issue 11: a light's exact row at scale 1e4 was twice
+/// the value at scale 1, 0.000555 vs 0.000287, the same blockers in other rounding).
 fn subtract_convex(piece: &[DVec3], hole: &[DVec3], sn: DVec3) -> Vec<Vec<DVec3>> {
+    let k = hole.len();
+    let m = piece.len();
+    let size = (0..m)
+        .map(|i| (piece[(i + 1) % m] - piece[i]).length())
+        .fold(0.0, f64::max);
+    if k < 3 || polygon::newell(hole).dot(sn) <= DEGENERATE_HOLE * size * size {
+        return vec![piece.to_vec()];
+    }
     let mut out = Vec::new();
     let mut rest = piece.to_vec();
-    let k = hole.len();
-    let scale = (0..k)
-        .map(|i| (hole[(i + 1) % k] - hole[i]).length())
-        .fold(0.0, f64::max);
     for i in 0..k {
         if rest.len() < 3 {
             break;
@@ -451,7 +467,7 @@ fn subtract_convex(piece: &[DVec3], hole: &[DVec3], sn: DVec3) -> Vec<Vec<DVec3>
         // A degenerate edge (repeated vertex, left by clipping) has no outward side: with
         // a zero normal every point would count as outside and the hole itself would be
         // kept as visible.
-        if (b - a).length() <= 1e-9 * scale {
+        if (b - a).length() <= 1e-9 * size {
             continue;
         }
         // Outward normal of the hole's edge, in the plane.
@@ -553,5 +569,61 @@ mod tests {
         // The same blocker twice hides nothing more.
         let twice = point_to_visible_polygon(p, DVec3::Z, &src, &[blocker.clone(), blocker]);
         assert!((twice - half).abs() < 1e-14);
+    }
+
+    /// Issue 11, scale 1e4: a box edge's shadow that only touches a piece of the light
+    /// leaves a point-like hole (three vertices within 2e-12 of each other). It hides
+    /// nothing; its edges have no outward side, and subtracting them returned the piece
+    /// twice over (areas 265,115 + 24,101 + 241,013 for a piece of 265,115).
+    #[test]
+    fn a_point_like_shadow_hides_nothing() {
+        let v = DVec3::new;
+        let piece = vec![
+            v(5000.0, 10000.0, 3333.33333333),
+            v(5318.137882918239, 10000.0, 3333.33333333),
+            v(5318.137882918239, 10000.0, 4166.666666665),
+            v(5000.0, 10000.0, 4166.666666665),
+        ];
+        let hole = vec![
+            v(5318.137882918239, 10000.0, 3409.091097102341),
+            v(5318.137882918239, 10000.000000000002, 3409.091097102341),
+            v(5318.1378829182395, 10000.000000000002, 3409.091097102341),
+        ];
+        for sn in [DVec3::NEG_Y, DVec3::Y] {
+            let out = subtract_convex(&piece, &hole, sn);
+            let area: f64 = out.iter().map(|q| polygon::area(q)).sum();
+            let whole = polygon::area(&piece);
+            assert!(
+                (area - whole).abs() <= 1e-9 * whole,
+                "sn {sn}: {} pieces of total area {area}, the piece is {whole}",
+                out.len()
+            );
+        }
+        // A real hole still comes out: the middle third of the piece's width.
+        let (x0, x1) = (
+            5000.0 + 318.137882918239 / 3.0,
+            5000.0 + 2.0 * 318.137882918239 / 3.0,
+        );
+        let hole = vec![
+            v(x0, 10000.0, 3500.0),
+            v(x0, 10000.0, 4000.0),
+            v(x1, 10000.0, 4000.0),
+            v(x1, 10000.0, 3500.0),
+        ];
+        let sn = polygon::normal(&piece).expect("piece normal");
+        let hole = if polygon::normal(&hole).expect("hole normal").dot(sn) > 0.0 {
+            hole
+        } else {
+            hole.into_iter().rev().collect()
+        };
+        let area: f64 = subtract_convex(&piece, &hole, sn)
+            .iter()
+            .map(|q| polygon::area(q))
+            .sum();
+        let expected = polygon::area(&piece) - polygon::area(&hole);
+        assert!(
+            (area - expected).abs() <= 1e-9 * expected,
+            "{area} vs {expected}"
+        );
     }
 }

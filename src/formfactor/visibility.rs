@@ -282,13 +282,29 @@ pub fn occluded_point_to_polygon(
 /// The part of `poly` on or above the tangent plane at `x` (unit normal `nx`), the only part
 /// a receiver there can see: `poly` itself when every vertex is on or above the plane,
 /// otherwise the clipped polygon (possibly degenerate).
+///
+/// "On" allows the round-off of the points' coordinates: a vertex below the plane by at
+/// most [`ON_PLANE`] times its distance from `x` counts as on it. Without that, a shooter
+/// whose edge lies in the receiver's plane (a wall patch starting at the height of a box
+/// top) was clipped or not depending on the last bit of a coordinate, and the clipped
+/// polygon's sampler places its stratified points differently, so the same scene in another
+/// unit got other shadow-ray samples (issue 11: 1e-3 vs 1 differed by 25 % in such rows).
 pub fn part_above(poly: &[DVec3], x: DVec3, nx: DVec3) -> Cow<'_, [DVec3]> {
-    if poly.iter().all(|v| (*v - x).dot(nx) >= 0.0) {
+    if poly.iter().all(|v| {
+        let d = *v - x;
+        d.dot(nx) >= -ON_PLANE * d.length()
+    }) {
         Cow::Borrowed(poly)
     } else {
         Cow::Owned(polygon::clip_to_halfspace(poly, x, nx))
     }
 }
+
+/// Relative tolerance of "on the tangent plane" in [`part_above`]: far above the round-off
+/// of coordinates (1e-16 of the scene size), far below any tilt that matters (the part of
+/// the polygon it lets below the plane subtends at most this angle, and contributes
+/// cos θ ≤ 1e-12 to the sampled weights).
+const ON_PLANE: f64 = 1e-12;
 
 /// A sampler of `part` (from [`part_above`]): `whole`, the sampler of the whole polygon,
 /// when nothing was clipped, otherwise a new sampler of the clipped part (empty when the
@@ -451,6 +467,26 @@ mod tests {
                 raycast::hit_fraction(&bvh, raycast::Origin::Polygon(s), 0, 64, 1e-9, &mut rng);
             assert_eq!(hits, 0.0, "{poly:?}");
         }
+    }
+
+    /// Issue 11: a shooter whose edge lies in the receiver's tangent plane, but 5e-17 above
+    /// or below it by round-off (a wall patch starting at the height of a box top), must not
+    /// be clipped: clipping reorders its vertices and so the sampler's points.
+    #[test]
+    fn a_vertex_on_the_tangent_plane_up_to_round_off_is_not_clipped() {
+        let wall = vec![
+            DVec3::new(1.0, 0.3, 0.5),
+            DVec3::new(1.0, 0.3, 0.6),
+            DVec3::new(1.0, 0.4, 0.6),
+            DVec3::new(1.0, 0.4, 0.5),
+        ];
+        for y in [0.3, 0.30000000000000004, 0.29999999999999993] {
+            let part = part_above(&wall, DVec3::new(0.175, y, 0.275), DVec3::Y);
+            assert!(matches!(part, Cow::Borrowed(_)), "receiver at y = {y}");
+        }
+        // A real tilt below the plane is still clipped.
+        let part = part_above(&wall, DVec3::new(0.175, 0.3 + 1e-9, 0.275), DVec3::Y);
+        assert!(matches!(part, Cow::Owned(_)));
     }
 
     #[test]

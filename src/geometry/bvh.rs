@@ -4,6 +4,12 @@
 //! Nodes are flattened depth-first; the left child directly follows its parent. Triangles
 //! are stored as `(v0, e1, e2)` in `f32` for the Möller–Trumbore test. Each triangle carries a
 //! caller-chosen `u32` id (a patch or element index) and whether back faces are culled.
+//!
+//! Everything is stored and tested in coordinates normalised by the input's bounding box
+//! (centre at the origin, diagonal 1), so the `f32` rounding of a vertex, the tree and every
+//! hit decision are the same whatever the scene's unit: a scene at 1e-3 or 1e4 times the
+//! size gives the same answers, not answers that differ wherever `f32` rounds `0.45` and
+//! `0.00045` differently (issue 11: a visibility decision flipped between scales).
 
 use super::{Aabb, Ray, shaft::Shaft};
 use glam::{DVec3, Vec3};
@@ -55,10 +61,25 @@ pub struct TriangleInput {
 }
 
 /// Bounding-volume hierarchy over triangles.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Bvh {
     nodes: Vec<Node>,
     tris: Vec<Tri>,
+    /// World point at the normalised origin (the centre of the input's bounding box).
+    origin: DVec3,
+    /// World length of one normalised unit (the input's bounding-box diagonal).
+    scale: f64,
+}
+
+impl Default for Bvh {
+    fn default() -> Self {
+        Bvh {
+            nodes: Vec::new(),
+            tris: Vec::new(),
+            origin: DVec3::ZERO,
+            scale: 1.0,
+        }
+    }
 }
 
 impl Bvh {
@@ -68,10 +89,35 @@ impl Bvh {
         if n == 0 {
             return Bvh::default();
         }
+        let mut all = Aabb::EMPTY;
+        for t in input {
+            for v in &t.vertices {
+                if v.is_finite() {
+                    all.grow(*v);
+                }
+            }
+        }
+        let diagonal = all.diagonal();
+        let (origin, scale) = if diagonal > 0.0 && diagonal.is_finite() {
+            (all.center(), diagonal)
+        } else {
+            (
+                if all.is_empty() {
+                    DVec3::ZERO
+                } else {
+                    all.center()
+                },
+                1.0,
+            )
+        };
+        let local: Vec<[DVec3; 3]> = input
+            .iter()
+            .map(|t| t.vertices.map(|v| (v - origin) / scale))
+            .collect();
         let mut boxes = Vec::with_capacity(n);
         let mut centers = Vec::with_capacity(n);
-        for t in input {
-            let b = Aabb::from_points(t.vertices.iter());
+        for v in &local {
+            let b = Aabb::from_points(v.iter());
             centers.push(b.center());
             boxes.push(b);
         }
@@ -82,17 +128,39 @@ impl Bvh {
             .iter()
             .map(|&i| {
                 let t = &input[i as usize];
-                let v0 = t.vertices[0].as_vec3();
+                let v = &local[i as usize];
+                let v0 = v[0].as_vec3();
                 Tri {
                     v0,
-                    e1: t.vertices[1].as_vec3() - v0,
-                    e2: t.vertices[2].as_vec3() - v0,
+                    e1: v[1].as_vec3() - v0,
+                    e2: v[2].as_vec3() - v0,
                     id: t.id,
                     cull_back: t.cull_back,
                 }
             })
             .collect();
-        Bvh { nodes, tris }
+        Bvh {
+            nodes,
+            tris,
+            origin,
+            scale,
+        }
+    }
+
+    /// A world point in normalised coordinates, rounded to `f32`.
+    fn local_point(&self, p: DVec3) -> Vec3 {
+        ((p - self.origin) / self.scale).as_vec3()
+    }
+
+    /// A world direction (or offset) in normalised coordinates, rounded to `f32`; ray
+    /// parameters `t` are the same in both.
+    fn local_dir(&self, d: DVec3) -> Vec3 {
+        (d / self.scale).as_vec3()
+    }
+
+    /// A normalised point back in world coordinates.
+    fn world_point(&self, p: Vec3) -> DVec3 {
+        p.as_dvec3() * self.scale + self.origin
     }
 
     pub fn triangle_count(&self) -> usize {
@@ -104,8 +172,8 @@ impl Bvh {
         if self.nodes.is_empty() {
             return None;
         }
-        let o = ray.origin.as_vec3();
-        let d = ray.dir.as_vec3();
+        let o = self.local_point(ray.origin);
+        let d = self.local_dir(ray.dir);
         let inv = d.recip();
         let mut best_t = t_max as f32;
         let mut best: Option<(u32, f32, f32, bool)> = None;
@@ -155,13 +223,25 @@ impl Bvh {
             sp -= 1;
             node = stack[sp];
         }
-        best.map(|(k, u, v, front)| Hit {
-            t: best_t as f64,
-            id: self.tris[k as usize].id,
-            triangle: k,
-            u: u as f64,
-            v: v as f64,
-            front,
+        best.map(|(k, u, v, front)| {
+            // The hit found in f32, its parameters recomputed in f64 from the same stored
+            // triangle: shading interpolates with (u, v), and f32 barycentrics carry ~1e-7
+            // of noise (more at grazing angles) that depends on the last bit of the ray,
+            // so the same view in another unit was shaded 1e-6 differently (issue 11).
+            let tri = &self.tris[k as usize];
+            let (o64, d64) = (
+                (ray.origin - self.origin) / self.scale,
+                ray.dir / self.scale,
+            );
+            let (t, u, v) = refine(tri, o64, d64).unwrap_or((best_t as f64, u as f64, v as f64));
+            Hit {
+                t,
+                id: tri.id,
+                triangle: k,
+                u,
+                v,
+                front,
+            }
         })
     }
 
@@ -177,8 +257,8 @@ impl Bvh {
         if self.nodes.is_empty() {
             return false;
         }
-        let o = ray.origin.as_vec3();
-        let d = ray.dir.as_vec3();
+        let o = self.local_point(ray.origin);
+        let d = self.local_dir(ray.dir);
         let inv = d.recip();
         let (t_min, t_max) = (t_min as f32, t_max as f32);
         let mut stack = [0u32; 64];
@@ -234,7 +314,7 @@ impl Bvh {
         let mut node = 0u32;
         loop {
             let nd = &self.nodes[node as usize];
-            if !shaft.excludes_box(nd.min.as_dvec3(), nd.max.as_dvec3()) {
+            if !shaft.excludes_box(self.world_point(nd.min), self.world_point(nd.max)) {
                 if nd.count > 0 {
                     let first = nd.first_or_right as usize;
                     for (k, tri) in self.tris[first..first + nd.count as usize]
@@ -244,9 +324,7 @@ impl Bvh {
                         if tri.id == ignore[0] || tri.id == ignore[1] {
                             continue;
                         }
-                        let v0 = tri.v0.as_dvec3();
-                        let v = [v0, v0 + tri.e1.as_dvec3(), v0 + tri.e2.as_dvec3()];
-                        if !shaft.excludes_triangle(v) {
+                        if !shaft.excludes_triangle(self.stored_triangle((first + k) as u32)) {
                             if out.len() >= limit {
                                 return false;
                             }
@@ -273,18 +351,19 @@ impl Bvh {
         }
     }
 
-    /// Vertices of the stored triangle `k` (as stored, in `f32` precision).
+    /// Vertices of the stored triangle `k` in world coordinates (as stored: `f32`
+    /// precision relative to the scene's bounding box, whatever its unit).
     pub fn stored_triangle(&self, k: u32) -> [DVec3; 3] {
         let t = &self.tris[k as usize];
         let v0 = t.v0.as_dvec3();
-        [v0, v0 + t.e1.as_dvec3(), v0 + t.e2.as_dvec3()]
+        [v0, v0 + t.e1.as_dvec3(), v0 + t.e2.as_dvec3()].map(|v| v * self.scale + self.origin)
     }
 
     /// Any hit among the stored triangles `candidates` (from [`Bvh::collect_in_shaft`]),
     /// both faces counted, with `t` in `(t_min, t_max)`.
     pub fn any_hit_among(&self, candidates: &[u32], ray: &Ray, t_min: f64, t_max: f64) -> bool {
-        let o = ray.origin.as_vec3();
-        let d = ray.dir.as_vec3();
+        let o = self.local_point(ray.origin);
+        let d = self.local_dir(ray.dir);
         let (t_min, t_max) = (t_min as f32, t_max as f32);
         candidates.iter().any(|&k| {
             let mut t = self.tris[k as usize];
@@ -292,6 +371,27 @@ impl Bvh {
             intersect(&t, o, d, t_min, t_max).is_some()
         })
     }
+}
+
+/// The ray parameter and barycentrics of `tri`'s plane hit, in f64 (no inside test: the
+/// caller found the hit in f32 already). `None` for a ray parallel to the plane.
+fn refine(tri: &Tri, o: DVec3, d: DVec3) -> Option<(f64, f64, f64)> {
+    let (v0, e1, e2) = (tri.v0.as_dvec3(), tri.e1.as_dvec3(), tri.e2.as_dvec3());
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let inv_det = 1.0 / det;
+    let s = o - v0;
+    let u = s.dot(p) * inv_det;
+    let q = s.cross(e1);
+    let v = d.dot(q) * inv_det;
+    let t = e2.dot(q) * inv_det;
+    // Barycentrics kept in the triangle (the f32 test put the hit there).
+    let (u, v) = (u.clamp(0.0, 1.0), v.clamp(0.0, 1.0));
+    let excess = (u + v - 1.0).max(0.0) * 0.5;
+    Some((t, u - excess, v - excess))
 }
 
 #[inline]
@@ -473,21 +573,21 @@ mod tests {
     use super::*;
     use crate::geometry::Rng;
 
-    fn brute_closest(tris: &[TriangleInput], ray: &Ray) -> Option<(f64, u32)> {
+    /// Every triangle tested, in the BVH's normalised coordinates (the same `f32` arithmetic).
+    fn brute_closest(bvh: &Bvh, tris: &[TriangleInput], ray: &Ray) -> Option<(f64, u32)> {
         let mut best: Option<(f64, u32)> = None;
         for (k, t) in tris.iter().enumerate() {
-            let v0 = t.vertices[0].as_vec3();
+            let v0 = bvh.local_point(t.vertices[0]);
             let tri = Tri {
                 v0,
-                e1: t.vertices[1].as_vec3() - v0,
-                e2: t.vertices[2].as_vec3() - v0,
+                e1: bvh.local_point(t.vertices[1]) - v0,
+                e2: bvh.local_point(t.vertices[2]) - v0,
                 id: k as u32,
                 cull_back: t.cull_back,
             };
             let limit = best.map_or(f32::INFINITY, |b| b.0 as f32);
-            if let Some((tt, ..)) =
-                intersect(&tri, ray.origin.as_vec3(), ray.dir.as_vec3(), 0.0, limit)
-            {
+            let (o, d) = (bvh.local_point(ray.origin), bvh.local_dir(ray.dir));
+            if let Some((tt, ..)) = intersect(&tri, o, d, 0.0, limit) {
                 best = Some((tt as f64, t.id));
             }
         }
@@ -521,12 +621,92 @@ mod tests {
             );
             let ray = Ray::new(o, d);
             let a = bvh.closest_hit(&ray, 0.0, f64::INFINITY);
-            let b = brute_closest(&tris, &ray);
+            let b = brute_closest(&bvh, &tris, &ray);
             assert_eq!(a.map(|h| h.id), b.map(|h| h.1));
             assert_eq!(bvh.any_hit(&ray, 0.0, f64::INFINITY), b.is_some());
             hits += a.is_some() as usize;
         }
         assert!(hits > 200, "test rays should hit something: {hits}");
+    }
+
+    /// Issue 11: the same triangles in another unit (coordinates multiplied by 1e-3 or 1e4,
+    /// as an OBJ export in millimetres or kilometres would have them) must give the same
+    /// stored triangles (relative to the scale) and the same hits, with rays aimed exactly
+    /// at vertices and edges, where an f32 rounding decides. Before the BVH worked in
+    /// normalised coordinates, `0.45` and `0.00045` rounded differently in f32 (stored
+    /// triangles 1e-8 apart relative) and f32 barycentrics differed by ~1e-7.
+    #[test]
+    fn the_same_scene_in_another_unit_gives_the_same_answers() {
+        let mut rng = Rng::new(11, 0);
+        let mut r = || (rng.next_f64() * 1000.0).round() / 1000.0; // decimal, as in an OBJ
+        let base: Vec<[DVec3; 3]> = (0..200)
+            .map(|_| {
+                let c = DVec3::new(r(), r(), r()) * 4.0;
+                let mut v = || c + DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
+                [v(), v(), v()]
+            })
+            .collect();
+        let build = |scale: f64| {
+            let input: Vec<TriangleInput> = base
+                .iter()
+                .enumerate()
+                .map(|(i, t)| TriangleInput {
+                    // Multiplied and written in decimal, then read back.
+                    vertices: t.map(|v| {
+                        let s = format!("{} {} {}", v.x * scale, v.y * scale, v.z * scale);
+                        let c: Vec<f64> = s.split(' ').map(|x| x.parse().unwrap()).collect();
+                        DVec3::new(c[0], c[1], c[2])
+                    }),
+                    id: i as u32,
+                    cull_back: false,
+                })
+                .collect();
+            Bvh::build(&input)
+        };
+        let one = build(1.0);
+        for scale in [1e-3, 1e4] {
+            let other = build(scale);
+            for k in 0..one.triangle_count() as u32 {
+                let (a, b) = (one.stored_triangle(k), other.stored_triangle(k));
+                for (p, q) in a.iter().zip(&b) {
+                    assert!(
+                        (*p - *q / scale).length() <= 1e-12 * p.length().max(1.0),
+                        "scale {scale}, triangle {k}: {p} vs {}",
+                        *q / scale
+                    );
+                }
+            }
+            let mut rng = Rng::new(12, 0);
+            for n in 0..3000 {
+                let t = &base[n % base.len()];
+                // Aimed at a vertex, an edge point or the centroid.
+                let w = match n % 3 {
+                    0 => t[n % 3],
+                    1 => (t[0] + t[1]) * 0.5,
+                    _ => (t[0] + t[1] + t[2]) / 3.0,
+                };
+                let o = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 6.0 - 1.0;
+                let (ray1, ray2) = (Ray::new(o, w - o), Ray::new(o * scale, (w - o) * scale));
+                assert_eq!(
+                    one.any_hit(&ray1, 1e-9, 1.0 + 1e-9),
+                    other.any_hit(&ray2, 1e-9, 1.0 + 1e-9),
+                    "scale {scale}, ray {n}"
+                );
+                let (h1, h2) = (
+                    one.closest_hit(&ray1, 0.0, f64::INFINITY),
+                    other.closest_hit(&ray2, 0.0, f64::INFINITY),
+                );
+                assert_eq!(h1.map(|h| h.id), h2.map(|h| h.id), "scale {scale}, ray {n}");
+                if let (Some(a), Some(b)) = (h1, h2) {
+                    for (x, y) in [(a.t, b.t), (a.u, b.u), (a.v, b.v)] {
+                        assert!(
+                            (x - y).abs() <= 1e-9,
+                            "scale {scale}, ray {n}: {a:?} vs {b:?}"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     #[test]

@@ -1,7 +1,9 @@
 //! Rays, triangles, a bounding-volume hierarchy and seeded sampling.
 //!
 //! Coordinates are right-handed scene units (millimetres for the Cornell box), +y up.
-//! The BVH stores triangles in `f32` for traversal speed; queries take and return `f64`.
+//! The BVH stores triangles in `f32` for traversal speed, in coordinates normalised by the
+//! scene's bounding box (so its rounding does not depend on the unit); queries take and
+//! return `f64`.
 
 pub mod bvh;
 pub mod polygon;

@@ -117,6 +117,34 @@ fn point_in_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3, n: DVec3) -> bool {
     s1 >= 0.0 && s2 >= 0.0 && s3 >= 0.0
 }
 
+/// A generic direction (1, √2, √3)/√6: no edge of axis-aligned or otherwise regular geometry
+/// is perpendicular to it, so two vertices of a polygon practically never tie along it.
+const CANONICAL_AXIS: DVec3 = DVec3::new(
+    0.408_248_290_463_863,
+    0.577_350_269_189_625_8,
+    0.707_106_781_186_547_5,
+);
+
+/// Index of the vertex of `poly` farthest along a fixed generic direction (the first of
+/// exact ties; 0 for an empty polygon): the same vertex whichever one the list starts at
+/// and whatever the unit, since it depends only on differences of vertices. Rotating a
+/// polygon built by an algorithm whose starting vertex depends on round-off (a convex hull
+/// starting at its lexicographically smallest point) to start there makes its list, and so
+/// everything that samples it in list order, independent of that round-off.
+pub fn canonical_start(poly: &[DVec3]) -> usize {
+    let Some(&first) = poly.first() else {
+        return 0;
+    };
+    let mut best = (f64::NEG_INFINITY, 0);
+    for (k, v) in poly.iter().enumerate() {
+        let key = (*v - first).dot(CANONICAL_AXIS);
+        if key > best.0 {
+            best = (key, k);
+        }
+    }
+    best.1
+}
+
 /// Clips a polygon to the half-space `(x - origin) · n >= 0` (Sutherland–Hodgman).
 pub fn clip_to_halfspace(poly: &[DVec3], origin: DVec3, n: DVec3) -> Vec<DVec3> {
     let k = poly.len();
@@ -170,6 +198,34 @@ mod tests {
             .map(|t| area(&[l[t[0]], l[t[1]], l[t[2]]]))
             .sum();
         assert!((total - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_canonical_start_does_not_depend_on_the_listing() {
+        let pentagon: Vec<DVec3> = (0..5)
+            .map(|k| {
+                let a = k as f64 * std::f64::consts::TAU / 5.0 + 0.3;
+                DVec3::new(a.cos(), 0.2 * a.sin(), a.sin())
+            })
+            .collect();
+        let c = canonical_start(&pentagon);
+        for start in 0..5 {
+            let rotated: Vec<DVec3> = pentagon[start..]
+                .iter()
+                .chain(&pentagon[..start])
+                .copied()
+                .collect();
+            let k = canonical_start(&rotated);
+            assert_eq!(rotated[k], pentagon[c], "listed from vertex {start}");
+            // The same polygon in another unit and place.
+            let moved: Vec<DVec3> = rotated.iter().map(|v| *v * 1e-3 + DVec3::X).collect();
+            assert_eq!(
+                canonical_start(&moved),
+                k,
+                "listed from vertex {start}, moved"
+            );
+        }
+        assert_eq!(canonical_start(&[]), 0);
     }
 
     #[test]

@@ -366,6 +366,11 @@ fn cluster_patch(
     if polygon::normal(&polygon).is_some_and(|n| n.dot(normal) < 0.0) {
         polygon.reverse();
     }
+    // The hull starts at its lexicographically smallest point, which round-off decides
+    // among points of equal coordinates (another unit, another start): start at a vertex
+    // that does not depend on it, so the shooter's samplers do not either (issue 11).
+    let start = polygon::canonical_start(&polygon);
+    polygon.rotate_left(start);
     let mut bounds: Vec<DVec3> = hull.iter().map(|&p| lift(p, lo)).collect();
     bounds.extend(hull.iter().map(|&p| lift(p, hi)));
     if bounds.is_empty() {
