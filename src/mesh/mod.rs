@@ -242,7 +242,7 @@ impl Mesh {
     /// The default mesh: element size from `budget` ([`element_size_for_budget`]), or with
     /// no budget given [`default_element_size`]; patches `patch_size` or
     /// [`default_patch_size`]. The size is an estimate from face areas (merged outlines,
-    /// slivers and small faces change the real count), so a mesh more than 15 % over the
+    /// slivers and small faces change the real count), so a mesh more than 5 % over the
     /// budget is rebuilt coarser, at most twice.
     pub fn build_for_budget(
         scene: &Scene,
@@ -263,7 +263,7 @@ impl Mesh {
             let mesh = Mesh::build_from(scene, &topo, size, patch)?;
             let count = mesh.elements.len() as f64;
             tries += 1;
-            if count <= 1.15 * target || tries == 3 {
+            if count <= 1.05 * target || tries == 3 {
                 return Ok(mesh);
             }
             size *= (count / target).sqrt();
