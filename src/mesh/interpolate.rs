@@ -184,7 +184,18 @@ impl Mesh {
     }
 
     fn find_t_vertices(&mut self, element_group: &[u32], vertex_group: &[u32], eps: f64) {
-        let cell = self.element_size.max(eps);
+        // Cells of a typical element's size (the median area's side), not of the nominal
+        // element size: faces smaller than an element stay whole, and a model of many tiny
+        // faces would otherwise put thousands of vertices in one cell (1 M triangles: 240 s).
+        let mut areas: Vec<f64> = self.elements.iter().map(|e| e.area).collect();
+        let typical = if areas.is_empty() {
+            self.element_size
+        } else {
+            let mid = areas.len() / 2;
+            let (_, median, _) = areas.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+            median.sqrt()
+        };
+        let cell = typical.min(self.element_size).max(eps);
         let key = |p: DVec3| {
             let q = (p / cell).floor();
             (q.x as i64, q.y as i64, q.z as i64)
@@ -208,29 +219,47 @@ impl Mesh {
                     key(pa.min(pb) - DVec3::splat(eps)),
                     key(pa.max(pb) + DVec3::splat(eps)),
                 );
-                // A long edge (a large element beside small ones) spans many cells: bounded.
-                if (hi.0 - lo.0 + 1) * (hi.1 - lo.1 + 1) * (hi.2 - lo.2 + 1) > 4096 {
-                    continue;
-                }
-                for x in lo.0..=hi.0 {
-                    for y in lo.1..=hi.1 {
-                        for z in lo.2..=hi.2 {
-                            let Some(list) = grid.get(&(x, y, z)) else {
-                                continue;
-                            };
-                            for &v in list {
-                                if v == a || v == b || vertex_group[v as usize] != group {
-                                    continue;
-                                }
-                                let p = self.vertices[v as usize];
-                                let t = (p - pa).dot(d) / len2;
-                                if t <= 1e-9 || t >= 1.0 - 1e-9 {
-                                    continue;
-                                }
-                                if (pa + d * t - p).length() < eps * 10.0 {
-                                    found.entry(v).or_insert(TVertex { vertex: v, a, b, t });
+                // The cells that can hold a vertex on the edge: its bounding box, or for a
+                // long edge (a large element beside small ones) the cells along it.
+                let mut cells: Vec<(i64, i64, i64)> = Vec::new();
+                if (hi.0 - lo.0 + 1) * (hi.1 - lo.1 + 1) * (hi.2 - lo.2 + 1) <= 64 {
+                    for x in lo.0..=hi.0 {
+                        for y in lo.1..=hi.1 {
+                            for z in lo.2..=hi.2 {
+                                cells.push((x, y, z));
+                            }
+                        }
+                    }
+                } else {
+                    let steps = (len2.sqrt() / (0.5 * cell)).ceil().min(1e7) as usize;
+                    for i in 0..=steps {
+                        let c = key(pa + d * (i as f64 / steps.max(1) as f64));
+                        for dx in -1..=1 {
+                            for dy in -1..=1 {
+                                for dz in -1..=1 {
+                                    cells.push((c.0 + dx, c.1 + dy, c.2 + dz));
                                 }
                             }
+                        }
+                    }
+                    cells.sort_unstable();
+                    cells.dedup();
+                }
+                for cell_key in cells {
+                    let Some(list) = grid.get(&cell_key) else {
+                        continue;
+                    };
+                    for &v in list {
+                        if v == a || v == b || vertex_group[v as usize] != group {
+                            continue;
+                        }
+                        let p = self.vertices[v as usize];
+                        let t = (p - pa).dot(d) / len2;
+                        if t <= 1e-9 || t >= 1.0 - 1e-9 {
+                            continue;
+                        }
+                        if (pa + d * t - p).length() < eps * 10.0 {
+                            found.entry(v).or_insert(TVertex { vertex: v, a, b, t });
                         }
                     }
                 }

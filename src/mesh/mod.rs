@@ -256,6 +256,9 @@ impl Mesh {
         };
         let topo = surfaces::Topology::new(scene);
         let mut tries = 0;
+        // A face smaller than an element is one element: with more faces than the budget
+        // the count cannot reach it, and coarser elements only coarsen the large faces.
+        let min_count = (topo.planar_members().len() * if scene.two_sided { 2 } else { 1 }) as f64;
         loop {
             let patch = patch_size
                 .unwrap_or_else(|| default_patch_size(size))
@@ -263,7 +266,7 @@ impl Mesh {
             let mesh = Mesh::build_from(scene, &topo, size, patch)?;
             let count = mesh.elements.len() as f64;
             tries += 1;
-            if count <= 1.05 * target || tries == 3 {
+            if count <= 1.05 * target || count <= 1.05 * min_count || tries == 3 {
                 return Ok(mesh);
             }
             size *= (count / target).sqrt();
