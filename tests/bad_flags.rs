@@ -331,3 +331,25 @@ fn the_solver_refuses_power_that_would_overflow_and_keeps_its_state() {
         solver.unshot_fraction()
     );
 }
+
+/// `--solver`, `--omega` and `--max-memory` are refused with a message naming the flag or
+/// the size, before any long work: an unknown solver name, ω outside (0, 2) (SOR diverges
+/// there), and a matrix larger than the memory allowed (never an out-of-memory kill).
+#[test]
+fn solver_flags_are_checked() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("x.png");
+    let out = out.to_str().expect("utf-8");
+    let base = ["render", "--builtin", "cornell", "--out", out, "--quiet"];
+    let with = |extra: &[&'static str]| -> Vec<&str> {
+        base.iter().copied().chain(extra.iter().copied()).collect()
+    };
+    refused(&with(&["--solver", "newton"]), "unknown --solver 'newton'");
+    refused(&with(&["--solver", "sor", "--omega", "2.5"]), "--omega");
+    refused(&with(&["--solver", "sor", "--omega", "0"]), "--omega");
+    refused(
+        &with(&["--solver", "gauss-seidel", "--max-memory", "1"]),
+        "--max-memory",
+    );
+    refused(&with(&["--max-memory", "0"]), "--max-memory");
+}

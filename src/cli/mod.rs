@@ -3,6 +3,7 @@
 //! The subcommands and flags are a contract used by tests, benchmarks and outside checks:
 //! extend them, don't rename them.
 
+pub mod bench;
 pub mod cases;
 mod formfactor;
 mod render;
@@ -38,6 +39,8 @@ pub enum Command {
     Compare(render::CompareArgs),
     /// Open the live viewer (the default command: `nusselt` = `nusselt view --builtin cornell`).
     View(view::ViewCmdArgs),
+    /// Every solver on scenes with known answers: error and residual against time (CSV).
+    Bench(bench::BenchArgs),
 }
 
 /// Which scene to load: an OBJ file or a built-in.
@@ -178,6 +181,7 @@ pub fn main() -> Result<()> {
         Some(Command::Formfactor(args)) => formfactor::run(&args),
         Some(Command::Compare(args)) => render::run_compare(&args),
         Some(Command::View(args)) => view::run(&args),
+        Some(Command::Bench(args)) => bench::run(&args),
         None => view::run(&view::ViewCmdArgs::cornell()),
     }
 }
