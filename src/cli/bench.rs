@@ -47,9 +47,7 @@ enum Truth {
 
 fn cube_face(c: glam::DVec3) -> usize {
     let d = [c.x, 1.0 - c.x, c.y, 1.0 - c.y, c.z, 1.0 - c.z];
-    (0..6)
-        .min_by(|&a, &b| d[a].total_cmp(&d[b]))
-        .unwrap_or(0)
+    (0..6).min_by(|&a, &b| d[a].total_cmp(&d[b])).unwrap_or(0)
 }
 
 fn cube_faces(solver: &dyn Solver) -> [f64; 6] {
@@ -292,11 +290,23 @@ fn live_edits(out: &std::path::Path) -> Result<()> {
     let path = out.join("live_edits.csv");
     let mut csv = std::fs::File::create(&path)?;
     writeln!(csv, "edit,edit_power_fraction,shots,seconds")?;
-    println!("\n| live edit (Cornell, default mesh) | edit's power / emitted | shots | seconds to 1 % of it |");
+    println!(
+        "\n| live edit (Cornell, default mesh) | edit's power / emitted | shots | seconds to 1 % of it |"
+    );
     println!("|---|---:|---:|---:|");
     let edits: [(&str, MaterialId, Option<Rgb>, Option<Rgb>); 2] = [
-        ("red wall Kd -> 0.2 0.6 0.2", wall, Some(Rgb::new(0.2, 0.6, 0.2)), None),
-        ("light Ke x2", light, None, Some(scene.materials[light.0 as usize].emission * 2.0)),
+        (
+            "red wall Kd -> 0.2 0.6 0.2",
+            wall,
+            Some(Rgb::new(0.2, 0.6, 0.2)),
+            None,
+        ),
+        (
+            "light Ke x2",
+            light,
+            None,
+            Some(scene.materials[light.0 as usize].emission * 2.0),
+        ),
     ];
     for (label, id, kd, ke) in edits {
         let m = &s.scene().materials[id.0 as usize];
@@ -313,7 +323,10 @@ fn live_edits(out: &std::path::Path) -> Result<()> {
         s.run(&stop, &never, &mut |_| {});
         let secs = start.elapsed().as_secs_f64();
         writeln!(csv, "{label},{edit:.6e},{},{secs:.4}", s.shots() - shots0)?;
-        println!("| {label} | {edit:.3} | {} | {secs:.3} |", s.shots() - shots0);
+        println!(
+            "| {label} | {edit:.3} | {} | {secs:.3} |",
+            s.shots() - shots0
+        );
     }
     Ok(())
 }

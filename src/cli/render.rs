@@ -273,7 +273,6 @@ fn render(args: &RenderArgs) -> Result<()> {
         overshoot: !args.no_overshoot,
         row_cache_bytes: max_memory_bytes(args.max_memory)?,
         raster: raster_for(method)?,
-        ..Default::default()
     };
     let adapter = config.raster.as_ref().map(|r| r.describe());
     let solve_start = Instant::now();

@@ -147,7 +147,12 @@ impl CgSolver {
         k.omega = omega;
         self.iterations += 1;
         let broke_down = rho == Rgb::ZERO || omega == Rgb::ZERO;
-        if !(norm(&k.r) > 1e-13 * k.norm0) || broke_down || self.iterations > 10 * n.max(1) {
+        let residual = norm(&k.r);
+        if residual.is_nan()
+            || residual <= 1e-13 * k.norm0
+            || broke_down
+            || self.iterations > 10 * n.max(1)
+        {
             self.converged = true;
         }
         self.state = Some(k);
