@@ -5,6 +5,7 @@ use std::collections::{HashMap, HashSet};
 
 use glam::DVec3;
 
+use super::footprint;
 use super::surfaces::Topology;
 use super::{Element, MAX_ELEMENTS, Mesh, MeshError, Patch, PatchId};
 use crate::geometry::polygon;
@@ -99,6 +100,23 @@ impl Mesh {
                 }
             }
         }
+        // Large faces cut along the outlines of faces facing them closer than a patch
+        // (objects resting on or hovering over a floor), so no patch straddles a contact.
+        let pieces: Vec<footprint::Piece> = units
+            .drain(..)
+            .filter_map(|u| match u {
+                Unit::Polygon { poly, face } => Some(footprint::Piece { poly, face }),
+                Unit::Cluster { .. } => None,
+            })
+            .collect();
+        units.extend(
+            footprint::split(pieces, patch_size)
+                .into_iter()
+                .map(|p| Unit::Polygon {
+                    poly: p.poly,
+                    face: p.face,
+                }),
+        );
         let clusters = topo.clusters(&small, patch_area, 0.75 * patch_size);
         let mut face_occluder = topo.planar.clone();
         let mut next_occluder = topo.planar_count as u32;

@@ -19,6 +19,7 @@
 //! box alone: a unit cube and a city block get about the same number of elements.
 
 mod build;
+mod footprint;
 mod interpolate;
 pub mod surfaces;
 
