@@ -12,29 +12,30 @@
 //! diagonal (identity here: `F_pp = 0`) as preconditioner. Each channel is its own system,
 //! iterated together; two matrix products per iteration.
 
-use std::sync::atomic::AtomicBool;
+use crate::scene::Rgb;
 
-use crate::scene::{MaterialId, Rgb};
-
-use super::gathering::PatchMatrix;
+use super::SolverError;
+use super::matrix::{Iteration, MatrixSolver, PatchMatrix};
 use super::problem::Problem;
-use super::{Solver, SolverError};
 
-/// BiCGSTAB on patches (see the module docs), elements gathered after each iteration.
-pub struct CgSolver {
-    problem: Problem,
-    matrix: PatchMatrix,
-    patch_b: Vec<Rgb>,
-    radiosity: Vec<Rgb>,
-    element_rho: Vec<Rgb>,
+/// BiCGSTAB on the patch system (see the module docs).
+#[derive(Default)]
+pub struct BiCgStab {
     state: Option<Krylov>,
     /// Nothing more to gain: the Krylov residual fell by 1e-13 from its start, a
     /// breakdown (a zero denominator), or the iterations ran past 10 × patches.
     converged: bool,
-    steps: usize,
     iterations: usize,
-    residual: f64,
-    emitted: f64,
+}
+
+/// BiCGSTAB on patches, elements gathered after each iteration.
+pub type CgSolver = MatrixSolver<BiCgStab>;
+
+impl MatrixSolver<BiCgStab> {
+    /// Refuses a matrix over the memory budget.
+    pub fn new(problem: Problem) -> Result<Self, SolverError> {
+        Self::with_iteration(problem, BiCgStab::default())
+    }
 }
 
 struct Krylov {
@@ -69,63 +70,49 @@ fn ratio(a: Rgb, b: Rgb) -> Rgb {
     Rgb::new(f(a.x, b.x), f(a.y, b.y), f(a.z, b.z))
 }
 
-impl CgSolver {
-    pub fn new(problem: Problem) -> Result<Self, SolverError> {
-        let matrix = PatchMatrix::new(&problem, "cg")?;
-        let mut s = Self {
-            problem,
-            matrix,
-            patch_b: Vec::new(),
-            radiosity: Vec::new(),
-            element_rho: Vec::new(),
-            state: None,
-            converged: false,
-            steps: 0,
-            iterations: 0,
-            residual: 1.0,
-            emitted: 0.0,
-        };
-        s.reset();
-        Ok(s)
+fn material(p: &Problem, k: usize) -> &crate::scene::Material {
+    &p.scene.materials[p.mesh.patches[k].material.0 as usize]
+}
+
+/// `(I − ρF) x`.
+fn apply(p: &Problem, matrix: &PatchMatrix, x: &[Rgb]) -> Vec<Rgb> {
+    (0..x.len())
+        .map(|k| x[k] - material(p, k).reflectance * matrix.gather(k, x))
+        .collect()
+}
+
+impl Iteration for BiCgStab {
+    fn name(&self) -> &'static str {
+        "cg"
     }
 
-    fn material(&self, p: usize) -> &crate::scene::Material {
-        let m = &self.problem.mesh.patches[p];
-        &self.problem.scene.materials[m.material.0 as usize]
-    }
-
-    /// `(I − ρF) x`.
-    fn apply(&self, x: &[Rgb]) -> Vec<Rgb> {
-        (0..x.len())
-            .map(|p| x[p] - self.material(p).reflectance * self.matrix.gather(p, x))
-            .collect()
-    }
-
-    fn start(&mut self) {
-        let ax = self.apply(&self.patch_b);
-        let r: Vec<Rgb> = (0..ax.len())
-            .map(|p| self.material(p).emission - ax[p])
-            .collect();
-        let norm0 = norm(&r);
-        self.converged = norm0 == 0.0;
-        self.state = Some(Krylov {
-            r_hat: r.clone(),
-            p: vec![Rgb::ZERO; r.len()],
-            v: vec![Rgb::ZERO; r.len()],
-            r,
-            rho: Rgb::ONE,
-            alpha: Rgb::ONE,
-            omega: Rgb::ONE,
-            norm0,
-        });
-    }
-
-    fn iterate(&mut self) {
-        if self.state.is_none() {
-            self.start();
+    fn iterate(&mut self, p: &Problem, matrix: &PatchMatrix, b: &mut [Rgb]) -> bool {
+        if self.converged {
+            return false;
         }
-        let Some(mut k) = self.state.take() else {
-            return;
+        let mut k = match self.state.take() {
+            Some(k) => k,
+            None => {
+                let ax = apply(p, matrix, b);
+                let r: Vec<Rgb> = (0..ax.len())
+                    .map(|i| material(p, i).emission - ax[i])
+                    .collect();
+                let norm0 = norm(&r);
+                if norm0 == 0.0 {
+                    self.converged = true;
+                    return false;
+                }
+                Krylov {
+                    r_hat: r.clone(),
+                    p: vec![Rgb::ZERO; r.len()],
+                    v: vec![Rgb::ZERO; r.len()],
+                    r,
+                    rho: Rgb::ONE,
+                    alpha: Rgb::ONE,
+                    omega: Rgb::ONE,
+                    norm0,
+                }
+            }
         };
         let n = k.r.len();
         let rho = dot(&k.r_hat, &k.r);
@@ -133,13 +120,13 @@ impl CgSolver {
         for i in 0..n {
             k.p[i] = k.r[i] + beta * (k.p[i] - k.omega * k.v[i]);
         }
-        k.v = self.apply(&k.p);
+        k.v = apply(p, matrix, &k.p);
         let alpha = ratio(rho, dot(&k.r_hat, &k.v));
         let s: Vec<Rgb> = (0..n).map(|i| k.r[i] - alpha * k.v[i]).collect();
-        let t = self.apply(&s);
+        let t = apply(p, matrix, &s);
         let omega = ratio(dot(&t, &s), dot(&t, &t));
         for i in 0..n {
-            self.patch_b[i] += alpha * k.p[i] + omega * s[i];
+            b[i] += alpha * k.p[i] + omega * s[i];
             k.r[i] = s[i] - omega * t[i];
         }
         k.rho = rho;
@@ -156,96 +143,17 @@ impl CgSolver {
             self.converged = true;
         }
         self.state = Some(k);
-        self.residual = self
-            .matrix
-            .residual(&self.problem, &self.patch_b, self.emitted);
-        self.radiosity =
-            self.matrix
-                .element_radiosity(&self.problem, &self.element_rho, &self.patch_b);
-        debug_assert!(self.radiosity.iter().all(|b| b.is_finite()));
-    }
-
-    /// Iterations done since the matrix was complete.
-    pub fn iterations(&self) -> usize {
-        self.iterations
-    }
-}
-
-impl Solver for CgSolver {
-    fn name(&self) -> &'static str {
-        "cg"
-    }
-    fn problem(&self) -> &Problem {
-        &self.problem
-    }
-    fn step(&mut self, cancel: &AtomicBool) -> bool {
-        if !self.matrix.complete(&self.problem) {
-            if !self.matrix.build_next(&self.problem, cancel) {
-                return false;
-            }
-        } else {
-            if self.residual == 0.0 || self.converged {
-                return false;
-            }
-            self.iterate();
-        }
-        self.steps += 1;
         true
     }
-    fn steps(&self) -> usize {
-        self.steps
-    }
-    fn radiosity(&self) -> &[Rgb] {
-        &self.radiosity
-    }
-    fn residual(&self) -> f64 {
-        self.residual
-    }
-    fn element_radiance(&self, _with_ambient: bool) -> Vec<Rgb> {
-        self.radiosity.clone()
-    }
-    fn set_material(
-        &mut self,
-        id: MaterialId,
-        reflectance: Rgb,
-        emission: Rgb,
-    ) -> Result<(), SolverError> {
-        self.problem
-            .set_material(id.0 as usize, reflectance, emission)?;
-        self.element_rho = self.problem.element_reflectance();
-        self.emitted = self.problem.emitted_power().max(f64::MIN_POSITIVE);
-        // Restart from the current solution (the Krylov space belongs to the old matrix).
+
+    /// Restarts from the current solution (the Krylov space belongs to the old matrix).
+    fn restart(&mut self) {
         self.state = None;
         self.converged = false;
-        if self.matrix.complete(&self.problem) {
-            self.residual = self
-                .matrix
-                .residual(&self.problem, &self.patch_b, self.emitted);
-        }
-        Ok(())
-    }
-    fn reset(&mut self) {
-        let n = self.problem.mesh.patches.len();
-        self.patch_b = (0..n).map(|p| self.material(p).emission).collect();
-        self.element_rho = self.problem.element_reflectance();
-        let p = &self.problem;
-        self.radiosity = p
-            .mesh
-            .elements
-            .iter()
-            .map(|e| p.material_of(e.patch).emission)
-            .collect();
-        self.emitted = p.emitted_power();
-        self.residual = if self.emitted > 0.0 { 1.0 } else { 0.0 };
-        self.state = None;
-        self.converged = false;
-        self.steps = 0;
         self.iterations = 0;
     }
-    fn matrix_bytes(&self) -> usize {
-        self.matrix.bytes()
-    }
-    fn report(&self) -> String {
-        format!("{} BiCGSTAB iterations", self.iterations)
+
+    fn report(&self, iterations: usize) -> String {
+        format!("{iterations} BiCGSTAB iterations")
     }
 }

@@ -23,12 +23,14 @@ use crate::scene::{MaterialId, Rgb};
 
 pub mod cg;
 pub mod gathering;
+pub mod matrix;
 pub mod problem;
 pub mod progressive;
 pub mod rows;
 
 pub use cg::CgSolver;
 pub use gathering::{GatherMethod, GatheringSolver};
+pub use matrix::MatrixSolver;
 pub use problem::Problem;
 pub use progressive::ProgressiveSolver;
 
