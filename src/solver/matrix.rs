@@ -270,19 +270,9 @@ impl<I: Iteration> Solver for MatrixSolver<I> {
     }
     fn reset(&mut self) {
         let p = &self.problem;
-        self.patch_b = p
-            .mesh
-            .patches
-            .iter()
-            .map(|q| p.scene.materials[q.material.0 as usize].emission)
-            .collect();
+        self.patch_b = p.patch_emission();
         self.element_rho = p.element_reflectance();
-        self.radiosity = p
-            .mesh
-            .elements
-            .iter()
-            .map(|e| p.material_of(e.patch).emission)
-            .collect();
+        self.radiosity = p.element_emission();
         self.emitted = p.emitted_power();
         self.residual = if self.emitted > 0.0 { 1.0 } else { 0.0 };
         self.steps = 0;

@@ -75,6 +75,24 @@ impl Problem {
         &self.scene.materials[self.mesh.patch(patch).material.0 as usize]
     }
 
+    /// Emission of each patch's material: the unshot (or gathered) radiance of a dark start.
+    pub fn patch_emission(&self) -> Vec<Rgb> {
+        self.mesh
+            .patches
+            .iter()
+            .map(|q| self.scene.materials[q.material.0 as usize].emission)
+            .collect()
+    }
+
+    /// Emission of each element's material: the radiosity of a dark start.
+    pub fn element_emission(&self) -> Vec<Rgb> {
+        self.mesh
+            .elements
+            .iter()
+            .map(|e| self.material_of(e.patch).emission)
+            .collect()
+    }
+
     /// Reflectance of each element's material.
     pub fn element_reflectance(&self) -> Vec<Rgb> {
         self.mesh

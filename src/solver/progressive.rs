@@ -121,18 +121,8 @@ impl ProgressiveSolver {
         let n = p.mesh.elements.len();
         self.incident = vec![Rgb::ZERO; n];
         self.element_rho = p.element_reflectance();
-        self.radiosity = p
-            .mesh
-            .elements
-            .iter()
-            .map(|e| p.material_of(e.patch).emission)
-            .collect();
-        self.unshot = p
-            .mesh
-            .patches
-            .iter()
-            .map(|q| p.scene.materials[q.material.0 as usize].emission)
-            .collect();
+        self.radiosity = p.element_emission();
+        self.unshot = p.patch_emission();
         self.shots = 0;
         self.last_shooter = None;
         self.total_area = p.mesh.patches.iter().map(|q| q.area).sum();
@@ -277,7 +267,11 @@ impl ProgressiveSolver {
     /// The patch whose shot would carry the most power, `|ΔB_i + ρ_i·ambient|·A_i` with
     /// overshooting and `|ΔB_i|·A_i` without, if any power is left.
     pub fn next_shooter(&self) -> Option<PatchId> {
-        let ambient = self.overshoot_basis();
+        self.pick_shooter(self.overshoot_basis())
+    }
+
+    /// [`next_shooter`](Self::next_shooter) with the overshoot basis already computed.
+    fn pick_shooter(&self, ambient: Rgb) -> Option<PatchId> {
         let mut best: Option<(f64, usize)> = None;
         for (i, (u, p)) in self
             .unshot
@@ -303,12 +297,13 @@ impl ProgressiveSolver {
     /// One shot from the patch with the most unshot power. Returns the shooter, or `None`
     /// when nothing is left to shoot or `cancel` was set (then nothing changed).
     pub fn shoot(&mut self, cancel: &AtomicBool) -> Option<PatchId> {
-        let shooter = self.next_shooter()?;
+        let basis = self.overshoot_basis();
+        let shooter = self.pick_shooter(basis)?;
         let row = self.rows.row(&self.problem, shooter, cancel)?;
         if cancel.load(Ordering::Relaxed) {
             return None;
         }
-        let overshoot = self.problem.material_of(shooter).reflectance * self.overshoot_basis();
+        let overshoot = self.problem.material_of(shooter).reflectance * basis;
         let delta = self.unshot[shooter.0 as usize] + overshoot;
         self.unshot[shooter.0 as usize] = -overshoot;
         // Receiving patches in parallel: each owns its elements' slices (elements are
