@@ -14,9 +14,12 @@
 //!
 //! **Overshooting**: a shot also sends `ρ_i · ambient`, the light the ambient term expects
 //! the shooter to receive later, and keeps it as *negative* unshot radiance, cancelled when
-//! that light arrives (or shot back negatively where it does not). In the furnace the
-//! estimate is exact and one sweep converges: ρ = 0.999 to an unshot fraction of 1e-4 takes
-//! 438 shots instead of 248,562 (486 elements, default mesh).
+//! that light arrives (or shot back negatively where it does not). The estimate is exact on
+//! average in a closed uniform scene but not per patch, so it buys most where most of the
+//! light is still to come: the ceiling-lit cube at ρ = 0.99 is within 1 % after 0.057 s
+//! instead of 1.68 s; the furnace at ρ = 0.999 to an unshot fraction of 1e-4 takes 202,099
+//! shots instead of 248,566 (486 elements, default mesh): its tail is plain shooting.
+//! (Without the `max(ambient, 0)` below it took 438 shots, but radiosity could go negative.)
 //!
 //! The ambient term `R · Σ U_i A_i / Σ A_i`, `R = 1/(1 − ρ_avg)`, is added for display only.
 
