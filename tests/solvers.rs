@@ -126,3 +126,44 @@ fn a_matrix_that_does_not_fit_is_refused() {
         Ok(_) => panic!("a 1 MB budget accepted a full Cornell matrix"),
     }
 }
+
+/// Switching solvers keeps the mesh and the cached rows: Gauss-Seidel built on the rows a
+/// shooting solve cached computes none again (with the cancel flag set, a row that had to
+/// be computed would be abandoned, so every matrix step must come from the cache), and
+/// reaches the same answer.
+#[test]
+fn switching_solvers_keeps_the_cached_rows() {
+    let mut shooting = SolverKind::Shooting
+        .build(furnace_problem(0.9))
+        .expect("solver");
+    solve(shooting.as_mut(), 1e-6);
+    let before: Vec<_> = shooting.radiosity().to_vec();
+    let (problem, rows) = shooting.into_parts();
+    let patches = problem.mesh.patches.len();
+    let cached = rows.bytes();
+    assert_eq!(
+        cached,
+        patches * problem.mesh.elements.len() * 4,
+        "every row cached"
+    );
+    let mut gs = SolverKind::GaussSeidel
+        .build_with_rows(problem, rows)
+        .expect("gauss-seidel");
+    let cancelled = AtomicBool::new(true);
+    for p in 0..patches {
+        assert!(gs.step(&cancelled), "row {p} was computed again");
+    }
+    solve(gs.as_mut(), 1e-6);
+    for (a, b) in gs.radiosity().iter().zip(&before) {
+        assert!((a.x - b.x).abs() <= 1e-4 * b.x, "{a} vs {b}");
+    }
+    // A refused switch leaves the solver where it was.
+    let mut tiny = gs.problem().config.clone();
+    tiny.row_cache_bytes = 1;
+    let (mut problem, rows) = gs.into_parts();
+    problem.config = tiny;
+    assert!(SolverKind::Cg.check(&problem).is_err());
+    assert!(SolverKind::Shooting.check(&problem).is_ok());
+    assert!(SolverKind::Sor(Some(2.5)).check(&problem).is_err());
+    drop(rows);
+}

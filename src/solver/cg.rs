@@ -17,6 +17,7 @@ use crate::scene::Rgb;
 use super::SolverError;
 use super::matrix::{Iteration, MatrixSolver, PatchMatrix};
 use super::problem::Problem;
+use super::rows::RowCache;
 
 /// BiCGSTAB on the patch system (see the module docs).
 #[derive(Default)]
@@ -34,7 +35,12 @@ pub type CgSolver = MatrixSolver<BiCgStab>;
 impl MatrixSolver<BiCgStab> {
     /// Refuses a matrix over the memory budget.
     pub fn new(problem: Problem) -> Result<Self, SolverError> {
-        Self::with_iteration(problem, BiCgStab::default())
+        Self::with_iteration(problem, BiCgStab::default(), RowCache::default())
+    }
+
+    /// As [`new`](Self::new), reusing rows cached on the same problem.
+    pub fn with_rows(problem: Problem, rows: RowCache) -> Result<Self, SolverError> {
+        Self::with_iteration(problem, BiCgStab::default(), rows)
     }
 }
 

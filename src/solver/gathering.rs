@@ -21,6 +21,7 @@ use crate::scene::Rgb;
 use super::SolverError;
 use super::matrix::{Iteration, MatrixSolver, PatchMatrix};
 use super::problem::Problem;
+use super::rows::RowCache;
 
 /// Which gathering iteration.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -45,27 +46,42 @@ pub type GatheringSolver = MatrixSolver<Relaxation>;
 impl MatrixSolver<Relaxation> {
     /// Refuses ω outside (0, 2) and a matrix over the memory budget.
     pub fn new(problem: Problem, method: GatherMethod) -> Result<Self, SolverError> {
-        if let GatherMethod::Sor(Some(w)) = method
-            && !(w > 0.0 && w < 2.0)
-        {
-            return Err(SolverError::BadValue {
-                what: "--omega",
-                range: "in (0, 2)",
-                value: [w; 3],
-            });
-        }
+        Self::with_rows(problem, method, RowCache::default())
+    }
+
+    /// As [`new`](Self::new), reusing rows cached on the same problem.
+    pub fn with_rows(
+        problem: Problem,
+        method: GatherMethod,
+        rows: RowCache,
+    ) -> Result<Self, SolverError> {
+        check_omega(method)?;
         let relaxation = Relaxation {
             method,
             omega: None,
             residuals: Vec::new(),
         };
-        Self::with_iteration(problem, relaxation)
+        Self::with_iteration(problem, relaxation, rows)
     }
 
     /// The relaxation factor in use (SOR only; `None` while still estimating).
     pub fn omega(&self) -> Option<f64> {
         self.iteration().omega
     }
+}
+
+/// Refuses ω outside (0, 2).
+pub(crate) fn check_omega(method: GatherMethod) -> Result<(), SolverError> {
+    if let GatherMethod::Sor(Some(w)) = method
+        && !(w > 0.0 && w < 2.0)
+    {
+        return Err(SolverError::BadValue {
+            what: "--omega",
+            range: "in (0, 2)",
+            value: [w; 3],
+        });
+    }
+    Ok(())
 }
 
 impl Iteration for Relaxation {

@@ -26,7 +26,7 @@ pub struct PatchMatrix {
 
 impl PatchMatrix {
     /// Refuses (before any work) rows that would not fit the memory budget.
-    pub fn new(problem: &Problem, solver: &'static str) -> Result<Self, SolverError> {
+    pub fn check(problem: &Problem, solver: &'static str) -> Result<(), SolverError> {
         let (patches, elements) = (problem.mesh.patches.len(), problem.mesh.elements.len());
         let needed = patches * elements * 4 + patches * patches * 12 / 2;
         if needed > problem.config.row_cache_bytes {
@@ -38,10 +38,22 @@ impl PatchMatrix {
                 elements,
             });
         }
+        Ok(())
+    }
+
+    /// An empty matrix that takes its rows from `cache` where it has them (rows cached by
+    /// another solver on the same problem).
+    pub fn new(
+        problem: &Problem,
+        solver: &'static str,
+        cache: RowCache,
+    ) -> Result<Self, SolverError> {
+        Self::check(problem, solver)?;
+        let patches = problem.mesh.patches.len();
         Ok(Self {
             by_receiver: vec![Vec::new(); patches],
             rows: Vec::with_capacity(patches),
-            cache: RowCache::default(),
+            cache,
         })
     }
 
@@ -169,9 +181,14 @@ pub struct MatrixSolver<I: Iteration> {
 }
 
 impl<I: Iteration> MatrixSolver<I> {
-    /// Refuses (before any row) a matrix over the memory budget.
-    pub fn with_iteration(problem: Problem, iteration: I) -> Result<Self, SolverError> {
-        let matrix = PatchMatrix::new(&problem, iteration.name())?;
+    /// Refuses (before any row) a matrix over the memory budget. Rows already in `rows`
+    /// are not computed again.
+    pub fn with_iteration(
+        problem: Problem,
+        iteration: I,
+        rows: RowCache,
+    ) -> Result<Self, SolverError> {
+        let matrix = PatchMatrix::new(&problem, iteration.name(), rows)?;
         let mut s = Self {
             problem,
             matrix,
@@ -282,6 +299,9 @@ impl<I: Iteration> Solver for MatrixSolver<I> {
     }
     fn matrix_bytes(&self) -> usize {
         self.matrix.bytes()
+    }
+    fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
+        (self.problem, self.matrix.cache)
     }
     fn report(&self) -> String {
         self.iteration.report(self.iterations)

@@ -33,6 +33,7 @@ pub use gathering::{GatherMethod, GatheringSolver};
 pub use matrix::MatrixSolver;
 pub use problem::Problem;
 pub use progressive::ProgressiveSolver;
+pub use rows::RowCache;
 
 #[derive(Clone, Debug)]
 pub struct SolverConfig {
@@ -187,18 +188,61 @@ impl SolverKind {
         })
     }
 
+    /// The name as the command line spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            SolverKind::Shooting => "shooting",
+            SolverKind::Jacobi => "jacobi",
+            SolverKind::GaussSeidel => "gauss-seidel",
+            SolverKind::Sor(_) => "sor",
+            SolverKind::Cg => "cg",
+        }
+    }
+
+    /// Whether [`build`](Self::build) would refuse `problem` (ω out of range, a matrix over
+    /// the memory budget), without taking it.
+    pub fn check(self, problem: &Problem) -> Result<(), SolverError> {
+        match self {
+            SolverKind::Shooting => Ok(()),
+            SolverKind::Sor(omega) => {
+                gathering::check_omega(GatherMethod::Sor(omega))?;
+                matrix::PatchMatrix::check(problem, self.name())
+            }
+            _ => matrix::PatchMatrix::check(problem, self.name()),
+        }
+    }
+
     /// A solver of this kind on `problem`, starting dark.
     pub fn build(self, problem: Problem) -> Result<Box<dyn Solver>, SolverError> {
+        self.build_with_rows(problem, RowCache::default())
+    }
+
+    /// As [`build`](Self::build), reusing form-factor rows cached on the same problem (by
+    /// [`Solver::into_parts`] of another solver): switching solvers keeps the mesh and the
+    /// rows.
+    pub fn build_with_rows(
+        self,
+        problem: Problem,
+        rows: RowCache,
+    ) -> Result<Box<dyn Solver>, SolverError> {
         Ok(match self {
-            SolverKind::Shooting => Box::new(ProgressiveSolver::from_problem(problem)),
-            SolverKind::Jacobi => Box::new(GatheringSolver::new(problem, GatherMethod::Jacobi)?),
-            SolverKind::GaussSeidel => {
-                Box::new(GatheringSolver::new(problem, GatherMethod::GaussSeidel)?)
-            }
-            SolverKind::Sor(omega) => {
-                Box::new(GatheringSolver::new(problem, GatherMethod::Sor(omega))?)
-            }
-            SolverKind::Cg => Box::new(CgSolver::new(problem)?),
+            SolverKind::Shooting => Box::new(ProgressiveSolver::with_rows(problem, rows)),
+            SolverKind::Jacobi => Box::new(GatheringSolver::with_rows(
+                problem,
+                GatherMethod::Jacobi,
+                rows,
+            )?),
+            SolverKind::GaussSeidel => Box::new(GatheringSolver::with_rows(
+                problem,
+                GatherMethod::GaussSeidel,
+                rows,
+            )?),
+            SolverKind::Sor(omega) => Box::new(GatheringSolver::with_rows(
+                problem,
+                GatherMethod::Sor(omega),
+                rows,
+            )?),
+            SolverKind::Cg => Box::new(CgSolver::with_rows(problem, rows)?),
         })
     }
 }
@@ -235,6 +279,10 @@ pub trait Solver: Send {
     fn ambient_mean(&self) -> f64 {
         0.0
     }
+    /// The patch the last step shot from (shooting only).
+    fn last_shooter(&self) -> Option<PatchId> {
+        None
+    }
     /// Memory held by stored form factors, in bytes.
     fn matrix_bytes(&self) -> usize {
         0
@@ -243,6 +291,9 @@ pub trait Solver: Send {
     fn report(&self) -> String {
         String::new()
     }
+    /// The problem and the cached form-factor rows, for a solver of another kind
+    /// ([`SolverKind::build_with_rows`]).
+    fn into_parts(self: Box<Self>) -> (Problem, RowCache);
 }
 
 /// One row of a generic run's log.

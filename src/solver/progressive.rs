@@ -101,13 +101,18 @@ impl ProgressiveSolver {
 
     /// A solver on a problem already meshed, starting dark.
     pub fn from_problem(problem: Problem) -> Self {
+        Self::with_rows(problem, RowCache::default())
+    }
+
+    /// As [`from_problem`](Self::from_problem), reusing rows cached on the same problem.
+    pub fn with_rows(problem: Problem, rows: RowCache) -> Self {
         let mut s = Self {
             problem,
             radiosity: Vec::new(),
             element_rho: Vec::new(),
             incident: Vec::new(),
             unshot: Vec::new(),
-            rows: RowCache::default(),
+            rows,
             shots: 0,
             last_shooter: None,
             total_area: 0.0,
@@ -473,6 +478,12 @@ impl Solver for ProgressiveSolver {
     }
     fn matrix_bytes(&self) -> usize {
         self.rows.bytes()
+    }
+    fn last_shooter(&self) -> Option<PatchId> {
+        self.last_shooter
+    }
+    fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
+        (self.problem, self.rows)
     }
     fn report(&self) -> String {
         format!(
