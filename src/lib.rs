@@ -25,7 +25,7 @@
 //! let coarse = scene.bounds().diagonal() / 20.0; // the default is 1/80
 //! let config = SolverConfig { element_size: Some(coarse), ..Default::default() };
 //! let mut solver = ProgressiveSolver::new(scene, config)?;
-//! let stop = StopCriteria { unshot: 0.0, max_shots: Some(30), max_seconds: None };
+//! let stop = StopCriteria { unshot: 0.0, max_shots: Some(30), max_seconds: None, tolerance: None };
 //! solver.run(&stop, &AtomicBool::new(false), &mut |_shot| {});
 //! assert_eq!(solver.shots(), 30);
 //!

@@ -321,6 +321,7 @@ fn the_solver_refuses_power_that_would_overflow_and_keeps_its_state() {
             unshot: 1e-3,
             max_shots: Some(10_000),
             max_seconds: Some(60.0),
+            tolerance: None,
         },
         &never,
         &mut |r| assert!(r.unshot_fraction.is_finite(), "{r:?}"),

@@ -675,7 +675,7 @@ proptest! {
             return Ok(());
         };
         s.run(
-            &StopCriteria { unshot: 0.0, max_shots: Some(20), max_seconds: None },
+            &StopCriteria { unshot: 0.0, max_shots: Some(20), max_seconds: None, tolerance: None },
             &AtomicBool::new(false),
             &mut |_| {},
         );

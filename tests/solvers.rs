@@ -31,6 +31,7 @@ fn solve(solver: &mut dyn Solver, residual: f64) {
         unshot: residual,
         max_shots: Some(200_000),
         max_seconds: None,
+        tolerance: None,
     };
     run_solver(solver, &stop, &AtomicBool::new(false), &mut |_, _| {});
 }

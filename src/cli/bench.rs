@@ -18,6 +18,8 @@ use anyhow::{Context, Result};
 use clap::Args;
 
 use crate::scene::{LoadOptions, MaterialId, Rgb, Scene};
+
+use super::plot::{self, Plot, Series};
 use crate::solver::{
     Problem, ProgressiveSolver, Solver, SolverConfig, SolverKind, StopCriteria, run_solver,
 };
@@ -30,9 +32,13 @@ pub struct BenchArgs {
     /// Wall-clock limit per solver and scene, in seconds.
     #[arg(long, default_value_t = 20.0)]
     pub seconds: f64,
-    /// Only the scenes whose name contains this (e.g. `furnace`, `cube-0.99`, `cornell`).
+    /// Only the scenes whose name contains this (e.g. `furnace`, `cube-0.99`, `cornell`,
+    /// `tworooms`, `cornell-image`).
     #[arg(long)]
     pub only: Option<String>,
+    /// The Cornell box's path-traced reference image for `cornell-image`.
+    #[arg(long, default_value = "benches/data/cornell_256_ref.pfm")]
+    pub cornell_reference: PathBuf,
 }
 
 /// The answer a run is measured against.
@@ -106,6 +112,7 @@ fn cube_reference(rho: f64) -> Result<[f64; 6]> {
         unshot: 1e-10,
         max_shots: None,
         max_seconds: Some(600.0),
+        tolerance: None,
     };
     run_solver(s.as_mut(), &stop, &AtomicBool::new(false), &mut |_, _| {});
     Ok(cube_faces(s.as_ref()))
@@ -175,7 +182,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     );
     println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     let never = AtomicBool::new(false);
+    let mut plots: Vec<(String, Vec<Series>)> = Vec::new();
     for case in &cases {
+        let mut case_series = Vec::new();
         for (label, kind, overshoot) in SOLVERS {
             let config = SolverConfig {
                 overshoot,
@@ -196,6 +205,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                 unshot: 1e-6,
                 max_shots: None,
                 max_seconds: Some(args.seconds),
+                tolerance: None,
             };
             let mut rows: Vec<String> = Vec::new();
             let (elements, patches) = (
@@ -205,9 +215,13 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             // Log-spaced rows: one each time the residual falls by 20 %, and the last.
             let mut logged = f64::INFINITY;
             let mut last_row = String::new();
+            let mut points = Vec::new();
             run_solver(solver.as_mut(), &stop, &never, &mut |r, s| {
                 let t = setup + r.seconds;
                 let err = error(&case.truth, s);
+                if r.residual <= 0.8 * logged || r.residual <= stop.unshot {
+                    points.push((t, err.unwrap_or(r.residual)));
+                }
                 // The time from which the error stays below 1 % (0.1 %): a later step
                 // above it (the error crossing zero on its way) resets the time.
                 if let Some(e) = err {
@@ -241,6 +255,11 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             for row in &rows {
                 writeln!(csv, "{row}")?;
             }
+            case_series.push(Series {
+                label: label.to_string(),
+                points,
+                markers: false,
+            });
             let fmt = |x: Option<f64>| x.map(|v| format!("{v:.3}")).unwrap_or("–".into());
             println!(
                 "| {} | {label} | {elements} | {patches} | {} | {:.3} | {:.1e} | {} | {} | {} | {:.1} |",
@@ -256,8 +275,31 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                 solver.matrix_bytes() as f64 / (1 << 20) as f64,
             );
         }
+        plots.push((case.name.clone(), case_series));
     }
     csv.flush()?;
+    for (name, series) in plots {
+        let measure = if name.starts_with("cornell") {
+            "residual"
+        } else {
+            "largest relative error"
+        };
+        plot::write(
+            &args.out.join(format!("convergence-{name}")),
+            &Plot {
+                title: &format!("{name}: {measure} against time"),
+                x_label: "seconds (mesh, form factors, solve)",
+                y_label: measure,
+                series,
+            },
+        )?;
+    }
+    if wanted("tworooms") {
+        super::bench_images::ambient(&args.out, args.seconds)?;
+    }
+    if wanted("cornell-image") {
+        super::bench_images::cornell(&args.out, &args.cornell_reference, args.seconds)?;
+    }
     if wanted("edit") || wanted("cornell") {
         live_edits(&args.out)?;
     }

@@ -4,8 +4,10 @@
 //! extend them, don't rename them.
 
 pub mod bench;
+mod bench_images;
 pub mod cases;
 mod formfactor;
+mod plot;
 mod render;
 mod view;
 

@@ -55,6 +55,16 @@ pub struct RenderArgs {
     /// a gathering or CG matrix that would not fit is refused before any work.
     #[arg(long)]
     pub max_memory: Option<u64>,
+    /// Stop when the estimated remaining relative error of every element falls to this
+    /// (shooting: the light the regional ambient term expects, over what the element shows;
+    /// gathering and cg: the residual bound max|r|/(1 - ρmax)); elements darker than 1/1000
+    /// of the mean radiosity count against that. Checked every 10 % more steps.
+    #[arg(long, allow_negative_numbers = true)]
+    pub tolerance: Option<f64>,
+    /// Display correction while unconverged (shooting): `regional` (the ambient term from
+    /// where the unshot light can reach, default) or `global` (the classic uniform term).
+    #[arg(long, default_value = "regional")]
+    pub ambient: String,
     /// Stop after this many shots.
     #[arg(long)]
     pub shots: Option<usize>,
@@ -236,6 +246,27 @@ fn render(args: &RenderArgs) -> Result<()> {
     if args.seconds.is_some_and(|s| !(s.is_finite() && s >= 0.0)) {
         bail!("--seconds must be a number >= 0");
     }
+    if args.tolerance.is_some_and(|t| !(t.is_finite() && t > 0.0)) {
+        bail!("--tolerance must be a positive number");
+    }
+    let regional_ambient = match args.ambient.as_str() {
+        "regional" => true,
+        "global" => false,
+        other => bail!("unknown --ambient '{other}' (expected regional or global)"),
+    };
+    let kind = SolverKind::parse(&args.solver, args.omega).ok_or_else(|| {
+        anyhow::anyhow!(
+            "unknown --solver '{}' (expected one of: {})",
+            args.solver,
+            SolverKind::NAMES.join(", ")
+        )
+    })?;
+    if args.omega.is_some() && !matches!(kind, SolverKind::Sor(_)) {
+        bail!(
+            "--omega is the relaxation factor of --solver sor; it does nothing for --solver {}",
+            kind.name()
+        );
+    }
     if let Some(p) = args.patch_size
         && !(p.is_finite() && p > 0.0)
     {
@@ -271,18 +302,12 @@ fn render(args: &RenderArgs) -> Result<()> {
         patch_size: args.patch_size,
         max_elements: args.max_elements,
         overshoot: !args.no_overshoot,
+        regional_ambient,
         row_cache_bytes: max_memory_bytes(args.max_memory)?,
         raster: raster_for(method)?,
     };
     let adapter = config.raster.as_ref().map(|r| r.describe());
     let solve_start = Instant::now();
-    let kind = SolverKind::parse(&args.solver, args.omega).ok_or_else(|| {
-        anyhow::anyhow!(
-            "unknown --solver '{}' (expected one of: {})",
-            args.solver,
-            SolverKind::NAMES.join(", ")
-        )
-    })?;
     let problem = Problem::new(scene, config)?;
     let mut solver = kind.build(problem)?;
     if !args.quiet && !args.json {
@@ -302,6 +327,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         unshot: args.unshot,
         max_shots: args.shots,
         max_seconds: args.seconds,
+        tolerance: args.tolerance,
     };
     let pb = bar(
         args.quiet,

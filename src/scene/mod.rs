@@ -104,9 +104,11 @@ const CORNELL_MTL: &str = include_str!("../../assets/cornell.mtl");
 const FURNACE_OBJ: &str = include_str!("../../assets/furnace.obj");
 const FURNACE_MTL: &str = include_str!("../../assets/furnace.mtl");
 const CUBE_OBJ: &str = include_str!("../../assets/cube.obj");
+const TWOROOMS_OBJ: &str = include_str!("../../assets/tworooms.obj");
+const TWOROOMS_MTL: &str = include_str!("../../assets/tworooms.mtl");
 
 /// Names of the built-in scenes.
-pub const BUILTINS: &[&str] = &["cornell", "furnace", "cube"];
+pub const BUILTINS: &[&str] = &["cornell", "furnace", "cube", "tworooms"];
 
 impl Scene {
     /// Loads an OBJ file and the MTL files it names (relative to the OBJ's folder).
@@ -168,7 +170,8 @@ impl Scene {
 
     /// A built-in scene by name: `cornell`, `furnace` (every face emits 1 and reflects
     /// `opts.rho`, default 0.9) or `cube` (12 triangles, the ceiling emits 1, every face
-    /// reflects `opts.rho`, default 0.5).
+    /// reflects `opts.rho`, default 0.5) or `tworooms` (two rooms joined by a door left ajar,
+    /// the light in the left one; `scripts/tworooms.py`).
     pub fn builtin(name: &str, opts: &LoadOptions) -> Result<Scene, SceneError> {
         match name {
             "cornell" => {
@@ -222,6 +225,22 @@ impl Scene {
                 s.camera = Some(Camera {
                     eye: DVec3::new(0.5, 0.5, 0.98),
                     target: DVec3::new(0.5, 0.5, 0.0),
+                    vfov_deg: 70.0,
+                });
+                Ok(s)
+            }
+            "tworooms" => {
+                let mut s = Scene::from_obj_str(
+                    "tworooms.obj",
+                    TWOROOMS_OBJ,
+                    &[("tworooms.mtl", TWOROOMS_MTL)],
+                    opts,
+                )?;
+                s.name = "tworooms".into();
+                // In the unlit room, facing the gap.
+                s.camera = Some(Camera {
+                    eye: DVec3::new(7.9, 1.4, 3.6),
+                    target: DVec3::new(4.1, 1.0, 1.3),
                     vfov_deg: 70.0,
                 });
                 Ok(s)

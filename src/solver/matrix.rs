@@ -300,6 +300,29 @@ impl<I: Iteration> Solver for MatrixSolver<I> {
     fn matrix_bytes(&self) -> usize {
         self.matrix.bytes()
     }
+    /// `max|r| / (1 − ρ_max)` over each patch's radiosity: the error `e = (I − ρF)⁻¹ r`
+    /// is bounded so where the rows sum to at most 1. Infinite while the matrix is built.
+    fn error_estimate(&self) -> f64 {
+        if !self.matrix.complete(&self.problem) {
+            return f64::INFINITY;
+        }
+        let problem = &self.problem;
+        let mut r_max: f64 = 0.0;
+        let mut rho_max: f64 = 0.0;
+        for (p, patch) in problem.mesh.patches.iter().enumerate() {
+            let m = &problem.scene.materials[patch.material.0 as usize];
+            let r =
+                m.emission + m.reflectance * self.matrix.gather(p, &self.patch_b) - self.patch_b[p];
+            r_max = r_max.max(r.abs().max_element());
+            rho_max = rho_max.max(m.reflectance.max_element());
+        }
+        let bound = r_max / (1.0 - rho_max.min(crate::scene::MAX_REFLECTANCE));
+        let floor = super::error_floor(problem, &self.radiosity);
+        self.patch_b
+            .iter()
+            .map(|b| bound / b.min_element().max(floor))
+            .fold(0.0, f64::max)
+    }
     fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
         (self.problem, self.matrix.cache)
     }

@@ -21,6 +21,7 @@ use crate::formfactor::{FormFactorMethod, FormFactorParams};
 use crate::mesh::{Mesh, MeshError, PatchId};
 use crate::scene::{MaterialId, Rgb};
 
+pub mod ambient;
 pub mod cg;
 pub mod gathering;
 pub mod matrix;
@@ -53,6 +54,9 @@ pub struct SolverConfig {
     /// is expected to receive later, `ρ_i · ambient`, and keeps it as negative unshot
     /// radiance that the light, when it arrives, cancels.
     pub overshoot: bool,
+    /// Display correction of shooting: the regional ambient term ([`ambient`]) instead of
+    /// the classic global one.
+    pub regional_ambient: bool,
     /// The rasteriser of `gpu-hemicube` rows (`crate::gpu::GpuHemicube`); required by that
     /// method, unused by the others.
     pub raster: Option<Arc<dyn ItemBufferRaster>>,
@@ -68,6 +72,7 @@ impl Default for SolverConfig {
             formfactor: FormFactorParams::default(),
             row_cache_bytes: 512 << 20,
             overshoot: true,
+            regional_ambient: true,
             raster: None,
         }
     }
@@ -134,6 +139,9 @@ pub struct StopCriteria {
     pub unshot: f64,
     pub max_shots: Option<usize>,
     pub max_seconds: Option<f64>,
+    /// Stop when the solver's estimate of the remaining relative error of every element
+    /// ([`Solver::error_estimate`]) falls to this (`--tolerance`).
+    pub tolerance: Option<f64>,
 }
 
 impl Default for StopCriteria {
@@ -142,6 +150,7 @@ impl Default for StopCriteria {
             unshot: 1e-4,
             max_shots: None,
             max_seconds: None,
+            tolerance: None,
         }
     }
 }
@@ -287,6 +296,12 @@ pub trait Solver: Send {
     fn matrix_bytes(&self) -> usize {
         0
     }
+    /// An estimate of the largest remaining relative error of an element's radiosity
+    /// (`--tolerance`): what is still to arrive over what the element shows, measured against
+    /// at least 1/1000 of the scene's mean radiosity (so elements that stay dark do not
+    /// hold a solve forever). Costs about a sweep; [`run_solver`] evaluates it at
+    /// geometrically spaced steps.
+    fn error_estimate(&self) -> f64;
     /// A line about solver-specific figures (ω of SOR, …), empty if none.
     fn report(&self) -> String {
         String::new()
@@ -305,7 +320,8 @@ pub struct StepRecord {
 }
 
 /// Steps `solver` until `stop` is met (`unshot` is the residual target; `max_shots` counts
-/// steps); calls `on_step` after each step.
+/// steps; `tolerance` is checked after 10 % more steps each time, so a run may overshoot
+/// it by that many); calls `on_step` after each step.
 pub fn run_solver(
     solver: &mut dyn Solver,
     stop: &StopCriteria,
@@ -313,9 +329,17 @@ pub fn run_solver(
     on_step: &mut dyn FnMut(&StepRecord, &dyn Solver),
 ) {
     let start = Instant::now();
+    let mut next_check = solver.steps();
     loop {
         let residual = solver.residual();
+        let tolerance_met = stop.tolerance.is_some_and(|t| {
+            solver.steps() >= next_check && {
+                next_check = solver.steps() + solver.steps() / 10 + 1;
+                solver.error_estimate() <= t
+            }
+        });
         if residual.is_nan()
+            || tolerance_met
             || residual <= stop.unshot
             || stop.max_shots.is_some_and(|n| solver.steps() >= n)
             || stop
@@ -334,4 +358,15 @@ pub fn run_solver(
         };
         on_step(&record, solver);
     }
+}
+
+/// The floor of relative error estimates: 1/1000 of the area-mean channel-mean radiosity.
+pub(crate) fn error_floor(problem: &Problem, radiosity: &[Rgb]) -> f64 {
+    let mut sum = 0.0;
+    let mut area = 0.0;
+    for (e, b) in problem.mesh.elements.iter().zip(radiosity) {
+        sum += (b.x + b.y + b.z) / 3.0 * e.area;
+        area += e.area;
+    }
+    (1e-3 * sum / area.max(1e-300)).max(1e-300)
 }

@@ -23,8 +23,8 @@
 //!
 //! The ambient term `R · Σ U_i A_i / Σ A_i`, `R = 1/(1 − ρ_avg)`, is added for display only.
 
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -35,6 +35,7 @@ use crate::geometry::Bvh;
 use crate::mesh::{Mesh, PatchId};
 use crate::scene::{MaterialId, Rgb, Scene};
 
+use super::ambient::RegionalAmbient;
 use super::problem::Problem;
 use super::rows::RowCache;
 use super::{ShotRecord, Solver, SolverConfig, SolverError, StopCriteria, channel_sum};
@@ -87,6 +88,8 @@ pub struct ProgressiveSolver {
     /// Per patch, radiance units.
     unshot: Vec<Rgb>,
     rows: RowCache,
+    /// Built on first display with the regional ambient term.
+    regional: OnceLock<RegionalAmbient>,
     shots: usize,
     last_shooter: Option<PatchId>,
     total_area: f64,
@@ -113,6 +116,7 @@ impl ProgressiveSolver {
             incident: Vec::new(),
             unshot: Vec::new(),
             rows,
+            regional: OnceLock::new(),
             shots: 0,
             last_shooter: None,
             total_area: 0.0,
@@ -141,6 +145,7 @@ impl ProgressiveSolver {
     pub fn remesh(&mut self, element_size: f64) -> Result<(), SolverError> {
         self.problem.remesh(element_size)?;
         self.rows.clear();
+        self.regional = OnceLock::new();
         self.reset();
         Ok(())
     }
@@ -231,21 +236,44 @@ impl ProgressiveSolver {
         r * unshot / self.total_area
     }
 
-    /// Per-element radiance for display: `B_j + ρ_j · ambient` when `with_ambient`.
+    /// The regional ambient term per patch ([`super::ambient`]): the light still to arrive
+    /// per unit reflectance. Builds the regions on first use.
+    pub fn regional_ambient(&self) -> Vec<Rgb> {
+        let regional = self
+            .regional
+            .get_or_init(|| RegionalAmbient::build(&self.problem));
+        let patches = &self.problem.mesh.patches;
+        let area: Vec<f64> = patches.iter().map(|p| p.area).collect();
+        let rho: Vec<Rgb> = patches
+            .iter()
+            .map(|p| self.problem.scene.materials[p.material.0 as usize].reflectance)
+            .collect();
+        regional.incoming(&area, &self.unshot, &rho)
+    }
+
+    /// Per-element radiance for display: `B_j + ρ_j · G_j` when `with_ambient`, `G` the
+    /// regional ambient term or (`regional_ambient` off) the classic one.
     ///
     /// With overshooting the ambient term can be negative (light sent ahead and not yet
     /// cancelled: the image is too bright on average, and the term is still exact on
     /// average in a closed uniform scene); an element it would take below zero shows 0.
     pub fn element_radiance(&self, with_ambient: bool) -> Vec<Rgb> {
-        let ambient = if with_ambient {
-            self.ambient()
+        let per_patch = if !with_ambient {
+            None
+        } else if self.problem.config.regional_ambient {
+            Some(self.regional_ambient())
         } else {
-            Rgb::ZERO
+            Some(vec![self.ambient(); self.problem.mesh.patches.len()])
         };
+        let elements = &self.problem.mesh.elements;
         self.radiosity
             .iter()
             .zip(&self.element_rho)
-            .map(|(b, rho)| {
+            .zip(elements)
+            .map(|((b, rho), e)| {
+                let ambient = per_patch
+                    .as_ref()
+                    .map_or(Rgb::ZERO, |g| g[e.patch.0 as usize]);
                 let shown = *b + *rho * ambient;
                 if with_ambient {
                     shown.max(Rgb::ZERO)
@@ -482,6 +510,22 @@ impl Solver for ProgressiveSolver {
     fn last_shooter(&self) -> Option<PatchId> {
         self.last_shooter
     }
+    /// `ρ_j |G_j|` over what the element shows, `G` the regional ambient term (the light the
+    /// unshot power is expected to bring).
+    fn error_estimate(&self) -> f64 {
+        let g = self.regional_ambient();
+        let floor = super::error_floor(&self.problem, &self.radiosity);
+        self.radiosity
+            .iter()
+            .zip(&self.element_rho)
+            .zip(&self.problem.mesh.elements)
+            .map(|((b, rho), e)| {
+                let missing = (*rho * g[e.patch.0 as usize]).abs();
+                let shown = (*b + *rho * g[e.patch.0 as usize]).max(Rgb::ZERO);
+                (missing / shown.max(Rgb::splat(floor))).max_element()
+            })
+            .fold(0.0, f64::max)
+    }
     fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
         (self.problem, self.rows)
     }
@@ -515,6 +559,7 @@ mod tests {
             max_shots: None,
             // Only so that a regression fails in bounded time; the run must not get here.
             max_seconds: Some(20.0),
+            tolerance: None,
         };
         s.run(&stop, &AtomicBool::new(false), &mut |_| {});
         assert_eq!(s.shots(), 0, "shot on with a NaN unshot fraction");

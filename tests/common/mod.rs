@@ -109,6 +109,7 @@ pub fn converge_within(
             unshot,
             max_shots: None,
             max_seconds: Some(budget_s),
+            tolerance: None,
         },
         &std::sync::atomic::AtomicBool::new(false),
         &mut |_| {},
