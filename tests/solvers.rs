@@ -168,3 +168,56 @@ fn switching_solvers_keeps_the_cached_rows() {
     assert!(SolverKind::Sor(Some(2.5)).check(&problem).is_err());
     drop(rows);
 }
+
+/// `--tolerance`: each solver stops when its estimate of the largest remaining relative
+/// error of an element falls to the tolerance, and the answer it stops at is then within
+/// that tolerance of the converged one on the same mesh (the ceiling-lit cube at ρ = 0.9,
+/// where a solve to 1 % stops long before the residual is small). Elements darker than
+/// 1/1000 of the mean count against that floor, as the estimate does.
+#[test]
+fn the_tolerance_stop_leaves_every_element_within_it() {
+    let problem = || {
+        let scene = Scene::builtin(
+            "cube",
+            &LoadOptions {
+                rho: Some(0.9),
+                ..Default::default()
+            },
+        )
+        .expect("cube");
+        let config = SolverConfig {
+            element_size: Some(0.1),
+            patch_size: Some(0.2),
+            ..Default::default()
+        };
+        Problem::new(scene, config).expect("problem")
+    };
+    let mut reference = SolverKind::Cg.build(problem()).expect("cg");
+    solve(reference.as_mut(), 1e-12);
+    let exact = reference.radiosity().to_vec();
+    let mean = exact.iter().map(|b| b.x).sum::<f64>() / exact.len() as f64;
+    let tolerance = 0.01;
+    for kind in [SolverKind::Shooting, SolverKind::GaussSeidel, SolverKind::Cg] {
+        let mut s = kind.build(problem()).expect("solver");
+        let stop = StopCriteria {
+            unshot: 0.0,
+            max_shots: Some(1_000_000),
+            max_seconds: None,
+            tolerance: Some(tolerance),
+        };
+        run_solver(s.as_mut(), &stop, &AtomicBool::new(false), &mut |_, _| {});
+        assert!(s.error_estimate() <= tolerance, "{kind:?} stopped early");
+        // BiCGSTAB drops by orders of magnitude per iteration: it passes 1e-6 before the
+        // tolerance's next check, so only the others show the stop came from it.
+        if kind != SolverKind::Cg {
+            assert!(s.residual() > 1e-6, "{kind:?}: the tolerance did not stop it");
+        }
+        let shown = s.element_radiance(true);
+        let worst = shown
+            .iter()
+            .zip(&exact)
+            .map(|(b, x)| (b.x - x.x).abs() / x.x.max(1e-3 * mean))
+            .fold(0.0, f64::max);
+        assert!(worst <= tolerance, "{kind:?}: worst element {worst:.2e}");
+    }
+}
