@@ -1,5 +1,7 @@
-//! Criterion benchmarks of the core: shadow rays through the BVH (one thread), one form-factor
-//! row, and a whole Cornell solve. Speed targets live here, never in unit tests.
+//! Criterion benchmarks of the core: shadow rays through the BVH (one thread), the
+//! form-factor kernels (point-to-polygon contour, exact polygon-to-polygon), one form-factor
+//! row, one shot and one Gauss-Seidel sweep on cached rows, and a whole Cornell solve. Speed
+//! targets live here, never in unit tests.
 //!
 //! `cargo bench --bench core`
 
@@ -11,7 +13,9 @@ use glam::DVec3;
 use nusselt::geometry::{Bvh, Ray, Rng};
 use nusselt::mesh::Mesh;
 use nusselt::scene::{LoadOptions, Scene};
-use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+use nusselt::solver::{
+    ProgressiveSolver, Solver, SolverConfig, SolverKind, StopCriteria, run_solver,
+};
 
 fn cornell() -> Scene {
     Scene::builtin("cornell", &LoadOptions::default()).expect("cornell")
@@ -96,5 +100,78 @@ fn solve(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bvh_rays, solve);
+/// The two analytic kernels on a unit square and a parallel one at distance 1 (Howell
+/// C-11, F = 0.1998).
+fn kernels(c: &mut Criterion) {
+    let square = |z: f64| {
+        vec![
+            DVec3::new(0.0, 0.0, z),
+            DVec3::new(1.0, 0.0, z),
+            DVec3::new(1.0, 1.0, z),
+            DVec3::new(0.0, 1.0, z),
+        ]
+    };
+    let (bottom, mut top) = (square(0.0), square(1.0));
+    top.reverse();
+    let mut g = c.benchmark_group("formfactor");
+    g.bench_function("point_to_polygon_contour", |b| {
+        b.iter(|| {
+            nusselt::formfactor::contour::point_to_polygon(
+                black_box(DVec3::new(0.5, 0.5, 0.0)),
+                DVec3::Z,
+                black_box(&top),
+            )
+        })
+    });
+    g.bench_function("polygon_to_polygon_exact", |b| {
+        b.iter(|| nusselt::formfactor::exact::polygon_to_polygon(black_box(&bottom), &top))
+    });
+    g.finish();
+}
+
+/// One shot and one sweep on rows already cached (the solver's inner loops without the
+/// form factors): the Cornell box at its default mesh.
+fn steps(c: &mut Criterion) {
+    let mut g = c.benchmark_group("step");
+    g.sample_size(20);
+    let never = AtomicBool::new(false);
+    // Shooting: 2,000 shots first, so that the rows of the patches that shoot are cached.
+    let mut shooting = ProgressiveSolver::new(cornell(), SolverConfig::default()).expect("solver");
+    let warm = StopCriteria {
+        unshot: 0.0,
+        max_shots: Some(2_000),
+        ..Default::default()
+    };
+    shooting.run(&warm, &never, &mut |_| {});
+    g.bench_function("cornell_one_shot_cached_row", |b| {
+        b.iter(|| {
+            // Converged: back to dark (rows stay cached) and on.
+            if shooting.shoot(&never).is_none() {
+                shooting.reset();
+            }
+        })
+    });
+    let problem = shooting.problem();
+    let problem = nusselt::solver::Problem::new(problem.scene.clone(), problem.config.clone())
+        .expect("problem");
+    let mut gs = SolverKind::GaussSeidel
+        .build(problem)
+        .expect("gauss-seidel");
+    let rows = StopCriteria {
+        unshot: 0.0,
+        max_shots: Some(gs.problem().mesh.patches.len()),
+        ..Default::default()
+    };
+    run_solver(gs.as_mut(), &rows, &never, &mut |_, _| {});
+    g.bench_function("cornell_one_gauss_seidel_sweep", |b| {
+        b.iter(|| {
+            if !gs.step(&never) {
+                gs.reset();
+            }
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bvh_rays, kernels, steps, solve);
 criterion_main!(benches);

@@ -357,7 +357,10 @@ fn solver_flags_are_checked() {
         &with(&["--solver", "cg", "--omega", "1.5"]),
         "--omega is the relaxation factor of --solver sor",
     );
-    refused(&with(&["--omega", "1.5"]), "does nothing for --solver shooting");
+    refused(
+        &with(&["--omega", "1.5"]),
+        "does nothing for --solver shooting",
+    );
     refused(&with(&["--tolerance", "0"]), "--tolerance");
     refused(&with(&["--tolerance", "nan"]), "--tolerance");
     refused(&with(&["--ambient", "local"]), "unknown --ambient 'local'");

@@ -197,7 +197,11 @@ fn the_tolerance_stop_leaves_every_element_within_it() {
     let exact = reference.radiosity().to_vec();
     let mean = exact.iter().map(|b| b.x).sum::<f64>() / exact.len() as f64;
     let tolerance = 0.01;
-    for kind in [SolverKind::Shooting, SolverKind::GaussSeidel, SolverKind::Cg] {
+    for kind in [
+        SolverKind::Shooting,
+        SolverKind::GaussSeidel,
+        SolverKind::Cg,
+    ] {
         let mut s = kind.build(problem()).expect("solver");
         let stop = StopCriteria {
             unshot: 0.0,
@@ -210,7 +214,10 @@ fn the_tolerance_stop_leaves_every_element_within_it() {
         // BiCGSTAB drops by orders of magnitude per iteration: it passes 1e-6 before the
         // tolerance's next check, so only the others show the stop came from it.
         if kind != SolverKind::Cg {
-            assert!(s.residual() > 1e-6, "{kind:?}: the tolerance did not stop it");
+            assert!(
+                s.residual() > 1e-6,
+                "{kind:?}: the tolerance did not stop it"
+            );
         }
         let shown = s.element_radiance(true);
         let worst = shown
