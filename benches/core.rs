@@ -13,9 +13,7 @@ use glam::DVec3;
 use nusselt::geometry::{Bvh, Ray, Rng};
 use nusselt::mesh::Mesh;
 use nusselt::scene::{LoadOptions, Scene};
-use nusselt::solver::{
-    ProgressiveSolver, Solver, SolverConfig, SolverKind, StopCriteria, run_solver,
-};
+use nusselt::solver::{ProgressiveSolver, SolverConfig, SolverKind, StopCriteria, run_solver};
 
 fn cornell() -> Scene {
     Scene::builtin("cornell", &LoadOptions::default()).expect("cornell")
