@@ -5,6 +5,7 @@
 //! emitters show their `Ke`. [`pathtrace::reference`] is an unbiased diffuse path tracer on
 //! the same scene for measuring the image error (pbrt-v4's `--mse-reference-image` idea).
 
+pub mod direct;
 pub mod image;
 pub mod pathtrace;
 pub mod view;
@@ -70,7 +71,7 @@ fn shade(view: &SolutionView, ray: &Ray) -> FirstHit {
 }
 
 /// Pixel samples: an `m × m` jittered grid over the pixel (m² ≥ spp, m = ⌈√spp⌉).
-fn pixel_samples(x: u32, y: u32, spp: u32, seed: u64, mut f: impl FnMut(f64, f64)) {
+pub(crate) fn pixel_samples(x: u32, y: u32, spp: u32, seed: u64, mut f: impl FnMut(f64, f64)) {
     let m = ((spp.max(1) as f64).sqrt().ceil() as u32).max(1);
     let mut rng = Rng::new(hash_seed(&[seed, x as u64, y as u64]), 7);
     for k in 0..spp.max(1) {
