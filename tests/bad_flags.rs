@@ -364,4 +364,5 @@ fn solver_flags_are_checked() {
     refused(&with(&["--tolerance", "0"]), "--tolerance");
     refused(&with(&["--tolerance", "nan"]), "--tolerance");
     refused(&with(&["--ambient", "local"]), "unknown --ambient 'local'");
+    refused(&with(&["--pass", "gather"]), "unknown --pass 'gather'");
 }

@@ -6,8 +6,10 @@
 //!   (which shows only what it has gathered), against the same mesh converged.
 //! - `cornell-image`: the Cornell box against the independent path-traced reference
 //!   (`benches/data/cornell_256_ref.pfm`): each solver over time; shooting at element
-//!   budgets from 1,250 to 40,000; each form-factor method at 5,000 elements; and the
-//!   project's path tracer at doubling sample counts, to compare times to the same error.
+//!   budgets from 1,250 to 40,000, each rendered by interpolation and by the direct pass
+//!   (`render --pass direct`, whole time to the image); each form-factor method at 5,000
+//!   elements; and the project's path tracer at doubling sample counts, to compare times to
+//!   the same error.
 //!
 //! Clocks exclude the benchmark's own renders of intermediate solutions (a solve does not
 //! render); they include meshing and form factors.
@@ -337,41 +339,60 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
     }
 
     // Whole runs to --unshot 1e-4: element budgets (contour rows), then form-factor methods.
-    let mut run_to_end = |label: String, config: SolverConfig, group: &str| -> Result<(f64, f64)> {
-        eprintln!("cornell image: {label}…");
-        let start = Instant::now();
-        let mut s = ProgressiveSolver::new(scene.clone(), config)?;
-        let stop = StopCriteria {
-            unshot: 1e-4,
-            // The finest meshes need longer than one solver's share.
-            max_seconds: Some(4.0 * seconds),
-            ..Default::default()
+    let mut run_to_end =
+        |label: String, config: SolverConfig, group: &str| -> Result<((f64, f64), (f64, f64))> {
+            eprintln!("cornell image: {label}…");
+            let start = Instant::now();
+            let mut s = ProgressiveSolver::new(scene.clone(), config)?;
+            let stop = StopCriteria {
+                unshot: 1e-4,
+                // The finest meshes need longer than one solver's share.
+                max_seconds: Some(4.0 * seconds),
+                ..Default::default()
+            };
+            s.run(&stop, &never, &mut |_| {});
+            let solved = start.elapsed().as_secs_f64();
+            let bvh = render::display_bvh(&scene, s.mesh());
+            let e = render::relative_rms(
+                &render_elements(s.problem(), &s.element_radiance(true), &bvh, 16),
+                &reference,
+                &mask,
+            )?;
+            // Whole time to each image: start, mesh, solve, render.
+            let t = start.elapsed().as_secs_f64();
+            let t_direct = Instant::now();
+            let settings = RenderSettings {
+                width: 256,
+                height: 256,
+                spp: 16,
+                camera,
+                seed: 1,
+            };
+            let direct =
+                render::direct::render_solution(s.problem(), &s.element_radiance(true), &settings);
+            let e_direct = render::relative_rms(&direct, &reference, &mask)?;
+            let t_direct = solved + t_direct.elapsed().as_secs_f64();
+            let n = s.mesh().elements.len();
+            rows.push((
+                format!("{group}, direct pass"),
+                label.clone(),
+                n,
+                s.shots(),
+                t_direct,
+                e_direct,
+            ));
+            rows.push((group.into(), label, n, s.shots(), t, e));
+            Ok(((t, e), (t_direct, e_direct)))
         };
-        s.run(&stop, &never, &mut |_| {});
-        let t = start.elapsed().as_secs_f64();
-        let bvh = render::display_bvh(&scene, s.mesh());
-        let e = render::relative_rms(
-            &render_elements(s.problem(), &s.element_radiance(true), &bvh, 16),
-            &reference,
-            &mask,
-        )?;
-        rows.push((
-            group.into(),
-            label,
-            s.mesh().elements.len(),
-            s.shots(),
-            t,
-            e,
-        ));
-        Ok((t, e))
-    };
-    let mut density = Vec::new();
+    let (mut density, mut density_direct) = (Vec::new(), Vec::new());
     for budget in [1_250, 2_500, 5_000, 10_000, 20_000, 40_000] {
         let config = SolverConfig {
             max_elements: Some(budget),
             ..Default::default()
         };
-        density.push(run_to_end(format!("budget {budget}"), config, "density")?);
+        let (vertex, direct) = run_to_end(format!("budget {budget}"), config, "density")?;
+        density.push(vertex);
+        density_direct.push(direct);
     }
     let mut methods = Vec::new();
     for method in [
@@ -387,7 +408,7 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
             method,
             ..Default::default()
         };
-        let point = run_to_end(format!("{method}"), config, "method")?;
+        let (point, _) = run_to_end(format!("{method}"), config, "method")?;
         methods.push(Series {
             label: format!("{method}, 5,000 elements"),
             points: vec![point],
@@ -469,6 +490,11 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
     curves.push(Series {
         label: "shooting, element budgets 1,250-40,000".into(),
         points: density,
+        markers: true,
+    });
+    curves.push(Series {
+        label: "shooting + direct pass (render --pass direct), same budgets".into(),
+        points: density_direct,
         markers: true,
     });
     curves.extend(methods);
