@@ -472,8 +472,11 @@ impl Solver for ProgressiveSolver {
     fn reset(&mut self) {
         ProgressiveSolver::reset(self)
     }
+    fn ambient(&self) -> Rgb {
+        ProgressiveSolver::ambient(self)
+    }
     fn ambient_mean(&self) -> f64 {
-        let a = self.ambient();
+        let a = ProgressiveSolver::ambient(self);
         (a.x + a.y + a.z) / 3.0
     }
     fn matrix_bytes(&self) -> usize {
