@@ -39,7 +39,7 @@ pub(super) fn stats_section(ui: &mut egui::Ui, s: &Snapshot, failed: bool) {
         if st.matrix_bytes > 0 {
             row(
                 ui,
-                "form factors",
+                "stored F",
                 format!("{:.1} MB", st.matrix_bytes as f64 / 1e6),
             );
         }
