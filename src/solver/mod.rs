@@ -289,6 +289,11 @@ pub trait Solver: Send {
     fn last_shooter(&self) -> Option<PatchId> {
         None
     }
+    /// Unshot radiance per patch (shooting only): what each patch has received and not yet
+    /// shot (negative where overshot light is still to be cancelled).
+    fn unshot(&self) -> Option<&[Rgb]> {
+        None
+    }
     /// Memory held by stored form factors, in bytes.
     fn matrix_bytes(&self) -> usize {
         0

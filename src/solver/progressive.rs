@@ -485,6 +485,9 @@ impl Solver for ProgressiveSolver {
     fn last_shooter(&self) -> Option<PatchId> {
         self.last_shooter
     }
+    fn unshot(&self) -> Option<&[Rgb]> {
+        Some(&self.unshot)
+    }
     fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
         (self.problem, self.rows)
     }
