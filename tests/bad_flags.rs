@@ -366,3 +366,26 @@ fn solver_flags_are_checked() {
     refused(&with(&["--ambient", "local"]), "unknown --ambient 'local'");
     refused(&with(&["--pass", "gather"]), "unknown --pass 'gather'");
 }
+
+/// `nusselt view --solver/--omega`: the same names as `render`, ω only with sor and in
+/// (0, 2), refused before a window opens (no display is needed to see the refusal).
+#[test]
+fn view_solver_flags_are_checked() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let shot = dir.path().join("s.png");
+    let shot = shot.to_str().expect("utf-8");
+    let base = ["view", "--screenshot", shot];
+    let with = |extra: &[&'static str]| -> Vec<&str> {
+        base.iter().copied().chain(extra.iter().copied()).collect()
+    };
+    refused(&with(&["--solver", "newton"]), "unknown --solver 'newton'");
+    refused(
+        &with(&["--solver", "jacobi", "--omega", "1.5"]),
+        "--omega is the relaxation factor of --solver sor; it does not apply to --solver jacobi",
+    );
+    refused(&with(&["--omega", "1.5"]), "--solver shooting");
+    refused(
+        &with(&["--solver", "sor", "--omega", "2.5"]),
+        "--omega must be in (0, 2)",
+    );
+}

@@ -136,8 +136,20 @@ impl Picture {
 }
 
 fn run_viewer(display: &Display, dir: &Path, shots: usize) -> (PathBuf, PathBuf) {
-    let window = dir.join(format!("window_{shots}.png"));
-    let viewport = dir.join(format!("viewport_{shots}.png"));
+    let n = shots.to_string();
+    run_viewer_with(
+        display,
+        dir,
+        &format!("{shots}_shots"),
+        &["--element-size", "25", "--after-shots", &n],
+    )
+}
+
+/// Runs the viewer on the Cornell box with `args` (element size and when to take the
+/// screenshot); returns the window and viewport PNGs, named after `tag`.
+fn run_viewer_with(display: &Display, dir: &Path, tag: &str, args: &[&str]) -> (PathBuf, PathBuf) {
+    let window = dir.join(format!("window_{tag}.png"));
+    let viewport = dir.join(format!("viewport_{tag}.png"));
     let runtime = dir.join("runtime");
     std::fs::create_dir_all(&runtime).expect("runtime dir");
     #[cfg(unix)]
@@ -147,7 +159,8 @@ fn run_viewer(display: &Display, dir: &Path, shots: usize) -> (PathBuf, PathBuf)
     }
     let start = Instant::now();
     let out = Command::new(env!("CARGO_BIN_EXE_nusselt"))
-        .args(["view", "--builtin", "cornell", "--element-size", "25"])
+        .args(["view", "--builtin", "cornell"])
+        .args(args)
         .args([
             "--window",
             "900x600",
@@ -158,12 +171,7 @@ fn run_viewer(display: &Display, dir: &Path, shots: usize) -> (PathBuf, PathBuf)
         .arg(&window)
         .arg("--viewport-png")
         .arg(&viewport)
-        .args([
-            "--after-shots",
-            &shots.to_string(),
-            "--screenshot-timeout",
-            "240",
-        ])
+        .args(["--screenshot-timeout", "240"])
         .env("DISPLAY", &display.name)
         .env("XDG_RUNTIME_DIR", &runtime)
         .env("XDG_DATA_HOME", dir.join("data"))
@@ -178,7 +186,7 @@ fn run_viewer(display: &Display, dir: &Path, shots: usize) -> (PathBuf, PathBuf)
         out.status
     );
     eprintln!(
-        "{shots} shots: {:.1} s; {}",
+        "{tag}: {:.1} s; {}",
         start.elapsed().as_secs_f64(),
         stderr
             .lines()
@@ -238,4 +246,46 @@ fn cornell_screenshots_show_red_left_green_right_and_brighten() {
     let (e, a) = (lum(early.mean(0.0, 1.0)), lum(late.mean(0.0, 1.0)));
     eprintln!("mean luminance (sRGB) after 1 shot {e:.4}, after 200 shots {a:.4}");
     assert!(a > 1.2 * e, "not brighter after 200 shots: {e} -> {a}");
+}
+
+/// `--solver gauss-seidel`: the gathering solve streams to the window and its converged
+/// picture has the Cornell box's colours where shooting's has them (red left, green right).
+#[test]
+fn a_gauss_seidel_screenshot_is_lit_like_shootings() {
+    if !vulkan_driver_present() {
+        skip("no Vulkan driver (install mesa-vulkan-drivers for lavapipe)");
+        return;
+    }
+    let display = match display() {
+        Ok(d) => d,
+        Err(reason) => {
+            skip(&reason);
+            return;
+        }
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (_, v) = run_viewer_with(
+        &display,
+        dir.path(),
+        "gauss_seidel",
+        &["--element-size", "40", "--solver", "gauss-seidel"],
+    );
+    let pic = Picture::load(&v);
+    let lum = |c: [f64; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    let (l, m, r) = (
+        pic.mean(0.0, 1.0 / 3.0),
+        pic.mean(1.0 / 3.0, 2.0 / 3.0),
+        pic.mean(2.0 / 3.0, 1.0),
+    );
+    eprintln!("gauss-seidel converged: left {l:.3?} middle {m:.3?} right {r:.3?}");
+    assert!(
+        l[0] / l[1] > 1.3 * m[0] / m[1],
+        "left third not redder than the middle: {l:?} vs {m:?}"
+    );
+    assert!(
+        r[1] / r[0] > 1.3 * m[1] / m[0],
+        "right third not greener than the middle: {r:?} vs {m:?}"
+    );
+    // Lit by interreflection, not only the light: the walls are far from black.
+    assert!(lum(m) > 0.1, "middle third too dark: {m:?}");
 }

@@ -99,9 +99,9 @@ fn a_panic_in_a_shot_is_reported_and_the_thread_loads_the_next_scene() {
     }
     assert!(!seen.is_empty(), "the scene was published before the panic");
     assert!(
-        seen.iter().all(|s| s.stats.shots == 0),
+        seen.iter().all(|s| s.stats.steps == 0),
         "a snapshot after the panicking shot: {:?}",
-        seen.iter().map(|s| s.stats.shots).collect::<Vec<_>>()
+        seen.iter().map(|s| s.stats.steps).collect::<Vec<_>>()
     );
     let rev = seen.last().map(|s| s.scene_rev).expect("a snapshot");
 
@@ -115,7 +115,7 @@ fn a_panic_in_a_shot_is_reported_and_the_thread_loads_the_next_scene() {
         assert!(Instant::now() < deadline, "the new scene never shot");
         if let Some(s) = h.take_snapshot()
             && s.scene_rev > rev
-            && s.stats.shots > 0
+            && s.stats.steps > 0
         {
             break s;
         }

@@ -1,5 +1,5 @@
-//! The viewer's solver-thread protocol, without a window: random command sequences never
-//! panic, deadlock or publish non-finite values, and an edit made while it runs converges
+//! The viewer's solver-thread protocol, without a window: random command sequences (every
+//! solver among them) never panic, deadlock or publish non-finite values, and an edit made while it runs converges
 //! to the same solution as a fresh solve of the edited scene.
 
 use std::sync::Arc;
@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 use nusselt::formfactor::FormFactorMethod;
 use nusselt::geometry::Rng;
 use nusselt::scene::{LoadOptions, MaterialId, Scene};
-use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+use nusselt::solver::{ProgressiveSolver, SolverConfig, SolverKind, StopCriteria};
 use nusselt::viewer::snapshot::Snapshot;
 use nusselt::viewer::solver_thread::{Command, Event, SolverHandle, ThreadConfig};
 
@@ -31,7 +31,7 @@ fn check_finite(s: &Snapshot) {
     assert!(s.ambient.iter().all(|x| x.is_finite()));
     assert_eq!(s.radiance.len(), s.geometry.positions.len());
     assert_eq!(s.reflectance.len(), s.geometry.positions.len());
-    assert!(s.stats.unshot_fraction.is_finite() || s.stats.unshot_fraction == f64::INFINITY);
+    assert!(s.stats.residual.is_finite() || s.stats.residual == f64::INFINITY);
     assert!(
         s.history
             .iter()
@@ -117,6 +117,15 @@ fn random_command_sequences_never_panic_or_deadlock() {
             (11, r) if r < 0.3 => Command::LoadPath(bad.clone()),
             (11, r) if r < 0.5 => Command::LoadScene(Box::new(cornell())),
             (11, _) => Command::SetStopThreshold(1e-3),
+            // Every solver, and an ω the solver refuses.
+            (12, r) => Command::SetSolver(match (r * 6.0) as usize {
+                0 => SolverKind::Shooting,
+                1 => SolverKind::Jacobi,
+                2 => SolverKind::GaussSeidel,
+                3 => SolverKind::Sor(None),
+                4 => SolverKind::Sor(Some(2.5)),
+                _ => SolverKind::Cg,
+            }),
             _ => Command::Play,
         };
         send(&h, c, deadline);
@@ -144,7 +153,7 @@ fn random_command_sequences_never_panic_or_deadlock() {
     while Instant::now() < deadline {
         if let Some(s) = h.take_snapshot() {
             check_finite(&s);
-            if s.stats.shots > 0 {
+            if s.stats.steps > 0 {
                 progressed = true;
                 break;
             }
@@ -192,6 +201,7 @@ fn an_edit_while_running_converges_to_a_fresh_solve() {
             stop_unshot: stop,
             max_shots: None,
             shot_threads: None,
+            kind: SolverKind::Shooting,
         },
     );
     let deadline = Instant::now() + Duration::from_secs(240);
@@ -207,7 +217,7 @@ fn an_edit_while_running_converges_to_a_fresh_solve() {
     while before_edit < 20 {
         assert!(Instant::now() < deadline);
         if let Some(s) = h.take_snapshot() {
-            before_edit = s.stats.shots;
+            before_edit = s.stats.steps;
         }
         std::thread::sleep(Duration::from_millis(1));
     }
@@ -232,12 +242,12 @@ fn an_edit_while_running_converges_to_a_fresh_solve() {
         std::thread::sleep(Duration::from_millis(2));
     };
     assert!(
-        converged.stats.shots > before_edit,
+        converged.stats.steps > before_edit,
         "the edit must not restart from dark: {} shots after, {} before",
-        converged.stats.shots,
+        converged.stats.steps,
         before_edit
     );
-    assert!(converged.stats.unshot_fraction <= stop);
+    assert!(converged.stats.residual <= stop);
     h.shutdown(Duration::from_secs(30));
 
     let mut scene = cornell();
@@ -259,7 +269,7 @@ fn an_edit_while_running_converges_to_a_fresh_solve() {
     let rel = rel_l2(&converged.radiance, &fresh_corners, &converged.geometry);
     eprintln!(
         "edit at shot {before_edit}, converged after {} shots; edited vs fresh: {rel:.2e}",
-        converged.stats.shots
+        converged.stats.steps
     );
     assert!(rel < 5e-3, "edited vs fresh solve differ by {rel}");
 }
@@ -297,7 +307,7 @@ fn a_bad_file_reports_file_and_line_and_keeps_the_scene() {
     let before = first_snapshot(&h, deadline, |_| true);
     send(&h, Command::LoadPath(bad.clone()), deadline);
     send(&h, Command::Step, deadline);
-    let after = first_snapshot(&h, deadline, |s| s.stats.shots == 1);
+    let after = first_snapshot(&h, deadline, |s| s.stats.steps == 1);
     let mut errors = Vec::new();
     while let Some(e) = h.try_event() {
         errors.push(e);
@@ -381,7 +391,7 @@ fn it_starts_dark_brightens_and_the_ambient_term_decays() {
     );
     let deadline = Instant::now() + Duration::from_secs(120);
     let dark = first_snapshot(&h, deadline, |_| true);
-    assert_eq!(dark.stats.shots, 0);
+    assert_eq!(dark.stats.steps, 0);
     // Only the light's corners are lit before the first shot.
     let lit = dark
         .radiance
@@ -407,7 +417,7 @@ fn it_starts_dark_brightens_and_the_ambient_term_decays() {
         first.ambient,
         last.ambient
     );
-    assert!(last.unshot_fraction <= 1e-3 && first.unshot_fraction > last.unshot_fraction);
+    assert!(last.residual <= 1e-3 && first.residual > last.residual);
 }
 
 #[test]
@@ -434,17 +444,17 @@ fn a_surface_made_a_light_and_back_converges_to_the_original() {
         reflectance: kd,
         emission: ke,
     };
-    first_snapshot(&h, deadline, |s| s.stats.shots >= 10);
+    first_snapshot(&h, deadline, |s| s.stats.steps >= 10);
     send(&h, edit([3.0, 3.0, 3.0]), deadline);
     let lit = first_snapshot(&h, deadline, |s| {
-        s.materials[green].is_emitter() && s.stats.shots >= 40
+        s.materials[green].is_emitter() && s.stats.steps >= 40
     });
     send(&h, edit([0.0; 3]), deadline);
     let done = first_snapshot(&h, deadline, |s| {
         !s.materials[green].is_emitter() && s.stats.converged
     });
     h.shutdown(Duration::from_secs(30));
-    assert!(done.stats.shots > lit.stats.shots);
+    assert!(done.stats.steps > lit.stats.steps);
     let mut fresh = ProgressiveSolver::new(cornell(), coarse_config()).expect("solver");
     fresh.run(
         &StopCriteria {
@@ -460,7 +470,7 @@ fn a_surface_made_a_light_and_back_converges_to_the_original() {
     let rel = rel_l2(&done.radiance, &want, &done.geometry);
     eprintln!(
         "light and back: {} shots; vs fresh {rel:.2e}",
-        done.stats.shots
+        done.stats.steps
     );
     assert!(
         rel < 5e-3,

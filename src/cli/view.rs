@@ -8,6 +8,7 @@ use clap::Args;
 
 use super::SceneArgs;
 use crate::formfactor::FormFactorMethod;
+use crate::solver::SolverKind;
 use crate::viewer::{
     Automation, EditSpec, ScreenshotPlan, ScreenshotWhen, UiOptions, ViewerOptions,
 };
@@ -22,13 +23,22 @@ pub struct ViewCmdArgs {
     /// Form-factor method (contour, exact, hemicube, raycast, montecarlo, hybrid, gpu-hemicube).
     #[arg(long = "formfactor", alias = "method")]
     pub method: Option<String>,
+    /// Solver: shooting (progressive refinement, default), jacobi, gauss-seidel, sor or cg,
+    /// as in `nusselt render`; the panel switches it later.
+    #[arg(long, default_value = "shooting")]
+    pub solver: String,
+    /// SOR relaxation factor in (0, 2) (default: estimated from the first sweeps); only
+    /// with --solver sor.
+    #[arg(long, allow_negative_numbers = true)]
+    pub omega: Option<f64>,
     /// Window size in points, WxH.
     #[arg(long, default_value = "1280x800")]
     pub window: String,
     /// Save a screenshot of the whole window to this PNG, then exit.
     #[arg(long)]
     pub screenshot: Option<PathBuf>,
-    /// Screenshot after this many shots (the solver stops there).
+    /// Screenshot after this many steps (shots; for a gathering solver, matrix rows and
+    /// then sweeps); the solver stops there.
     #[arg(long, requires = "screenshot", conflicts_with_all = ["after_seconds", "after_converged"])]
     pub after_shots: Option<usize>,
     /// Screenshot this many seconds after the window opened.
@@ -119,6 +129,28 @@ fn parse_window(text: &str) -> Result<[f32; 2]> {
     Ok([parse(w)?, parse(h)?])
 }
 
+/// `--solver NAME [--omega W]`: ω only with sor, and in (0, 2).
+fn parse_solver(name: &str, omega: Option<f64>) -> Result<SolverKind> {
+    let kind = SolverKind::parse(name, omega).with_context(|| {
+        format!(
+            "unknown --solver '{name}' (expected one of: {})",
+            SolverKind::NAMES.join(", ")
+        )
+    })?;
+    if let Some(w) = omega {
+        if !matches!(kind, SolverKind::Sor(_)) {
+            bail!(
+                "--omega is the relaxation factor of --solver sor; it does not apply to --solver {}",
+                kind.name()
+            );
+        }
+        if !(w.is_finite() && w > 0.0 && w < 2.0) {
+            bail!("--omega must be in (0, 2), got {w}");
+        }
+    }
+    Ok(kind)
+}
+
 pub fn run(args: &ViewCmdArgs) -> Result<()> {
     let mut scene_args = args.scene.clone();
     if scene_args.scene.is_none() && scene_args.builtin.is_none() {
@@ -133,6 +165,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
         Some(m) => super::render::parse_method("--formfactor", m)?,
         None => FormFactorMethod::Contour,
     };
+    let solver = parse_solver(&args.solver, args.omega)?;
     let window = parse_window(&args.window)?;
     let edits = args
         .edit
@@ -193,6 +226,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
         ui: UiOptions {
             element_size: args.element_size,
             method,
+            solver,
             raster: super::render::raster_for(method)?,
             window,
             wireframe: args.wireframe,
@@ -219,6 +253,35 @@ mod tests {
         assert!(parse_window("800").is_err());
         assert!(parse_window("0x600").is_err());
         assert!(parse_window("axb").is_err());
+    }
+
+    #[test]
+    fn solver_names_and_omega() {
+        assert_eq!(
+            parse_solver("shooting", None).expect("ok"),
+            SolverKind::Shooting
+        );
+        assert_eq!(
+            parse_solver("gauss-seidel", None).expect("ok"),
+            SolverKind::GaussSeidel
+        );
+        assert_eq!(
+            parse_solver("sor", Some(1.5)).expect("ok"),
+            SolverKind::Sor(Some(1.5))
+        );
+        assert_eq!(
+            parse_solver("sor", None).expect("ok"),
+            SolverKind::Sor(None)
+        );
+        let e = parse_solver("jacobi", Some(1.5)).expect_err("omega without sor");
+        assert!(e.to_string().contains("--omega"), "{e}");
+        assert!(e.to_string().contains("jacobi"), "{e}");
+        for bad in [0.0, 2.0, -1.0, f64::NAN] {
+            let e = parse_solver("sor", Some(bad)).expect_err("omega out of range");
+            assert!(e.to_string().contains("(0, 2)"), "{bad}: {e}");
+        }
+        let e = parse_solver("newton", None).expect_err("unknown");
+        assert!(e.to_string().contains("gauss-seidel"), "{e}");
     }
 
     #[test]

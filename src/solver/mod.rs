@@ -288,8 +288,19 @@ pub trait Solver: Send {
     fn ambient_mean(&self) -> f64 {
         0.0
     }
+    /// The display correction per channel (the ambient term of shooting; zero for solvers
+    /// without one): [`element_radiance`](Self::element_radiance) with `with_ambient` adds
+    /// `ρ_j` times it (clamped at zero).
+    fn ambient(&self) -> Rgb {
+        Rgb::ZERO
+    }
     /// The patch the last step shot from (shooting only).
     fn last_shooter(&self) -> Option<PatchId> {
+        None
+    }
+    /// Unshot radiance per patch (shooting only): what each patch has received and not yet
+    /// shot (negative where overshot light is still to be cancelled).
+    fn unshot(&self) -> Option<&[Rgb]> {
         None
     }
     /// Memory held by stored form factors, in bytes.

@@ -500,8 +500,11 @@ impl Solver for ProgressiveSolver {
     fn reset(&mut self) {
         ProgressiveSolver::reset(self)
     }
+    fn ambient(&self) -> Rgb {
+        ProgressiveSolver::ambient(self)
+    }
     fn ambient_mean(&self) -> f64 {
-        let a = self.ambient();
+        let a = ProgressiveSolver::ambient(self);
         (a.x + a.y + a.z) / 3.0
     }
     fn matrix_bytes(&self) -> usize {
@@ -525,6 +528,9 @@ impl Solver for ProgressiveSolver {
                 (missing / shown.max(Rgb::splat(floor))).max_element()
             })
             .fold(0.0, f64::max)
+    }
+    fn unshot(&self) -> Option<&[Rgb]> {
+        Some(&self.unshot)
     }
     fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
         (self.problem, self.rows)

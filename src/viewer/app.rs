@@ -69,6 +69,7 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
             raster: options.raster.clone(),
             ..Default::default()
         },
+        kind: options.solver,
         play: !options.paused,
         max_shots,
         shot_threads: options.solver_threads,
@@ -108,6 +109,11 @@ impl ViewerApp {
             element_size: options.element_size.unwrap_or(0.0),
             element_size_text: String::new(),
             element_size_error: None,
+            omega_text: match options.solver {
+                crate::solver::SolverKind::Sor(Some(w)) => w.to_string(),
+                _ => String::new(),
+            },
+            omega_error: None,
             editor: None,
             selection: options.automation.select,
             recent,
@@ -239,6 +245,7 @@ impl ViewerApp {
             Action::Solver(c) => self.solver.queue(c),
             Action::Remesh(size) => self.solver.queue(Command::Remesh(size)),
             Action::SetMethod(m) => self.solver.queue(Command::SetMethod(m)),
+            Action::SetSolver(k) => self.solver.queue(Command::SetSolver(k)),
             Action::OpenDialog => self.open_dialog(
                 ctx,
                 Request::new(Purpose::Open, ("Wavefront OBJ", "obj"), false),
@@ -466,7 +473,7 @@ impl eframe::App for ViewerApp {
         if let Some(s) = &self.snapshot {
             let t = (now - first).as_secs_f64() * 1e3;
             self.frame_log.first_light_ms.get_or_insert(t);
-            if s.stats.shots >= 1 {
+            if s.stats.steps >= 1 {
                 self.frame_log.first_shot_ms.get_or_insert(t);
             }
         }
@@ -479,7 +486,7 @@ impl eframe::App for ViewerApp {
                     .map_or(0.0, |l| (now - l).as_secs_f64() * 1e3),
                 ui_ms: (end - self.logic_start.unwrap_or(now)).as_secs_f64() * 1e3,
                 cpu_ms: frame.info().cpu_usage.map_or(f64::NAN, |c| c as f64 * 1e3),
-                shots: self.snapshot.as_ref().map_or(0, |s| s.stats.shots),
+                shots: self.snapshot.as_ref().map_or(0, |s| s.stats.steps),
                 elements: self.snapshot.as_ref().map_or(0, |s| s.stats.elements),
                 new_snapshot: self.new_snapshot,
             });

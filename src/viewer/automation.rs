@@ -147,7 +147,7 @@ impl ViewerApp {
         let Some(s) = self.snapshot.clone() else {
             return;
         };
-        if s.stats.shots < self.auto.edit_after_shots && !s.stats.converged {
+        if s.stats.steps < self.auto.edit_after_shots && !s.stats.converged {
             return;
         }
         self.edits_sent = true;
@@ -217,11 +217,11 @@ impl ViewerApp {
         ctx.request_repaint();
         let since_open = self.first_frame.map_or(Duration::ZERO, |t| t.elapsed());
         if !matches!(self.shot_state, ShotState::Done) && since_open > plan.timeout {
-            let shots = self.snapshot.as_ref().map_or(0, |s| s.stats.shots);
+            let steps = self.snapshot.as_ref().map_or(0, |s| s.stats.steps);
             self.fail(
                 ctx,
                 format!(
-                    "screenshot not taken within {:.0} s ({shots} shots so far)",
+                    "screenshot not taken within {:.0} s ({steps} steps so far)",
                     plan.timeout.as_secs_f64()
                 ),
             );
@@ -235,7 +235,7 @@ impl ViewerApp {
                 let ready = edits_done
                     && match plan.when {
                         ScreenshotWhen::Shots(n) => {
-                            s.stats.shots >= n || s.stats.converged || s.stats.limit_reached
+                            s.stats.steps >= n || s.stats.converged || s.stats.limit_reached
                         }
                         ScreenshotWhen::Seconds(t) => since_open.as_secs_f64() >= t,
                         ScreenshotWhen::Converged => s.stats.converged,
@@ -281,11 +281,12 @@ impl ViewerApp {
                         Ok(()) => {
                             let s = self.snapshot.as_ref();
                             eprintln!(
-                                "saved {} ({}x{} px, {} shots, {} elements)",
+                                "saved {} ({}x{} px, {} {} steps, {} elements)",
                                 plan.path.display(),
                                 image.size[0],
                                 image.size[1],
-                                s.map_or(0, |s| s.stats.shots),
+                                s.map_or("no", |s| s.stats.solver),
+                                s.map_or(0, |s| s.stats.steps),
                                 s.map_or(0, |s| s.stats.elements)
                             );
                             self.shot_state = ShotState::Done;

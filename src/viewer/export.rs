@@ -61,9 +61,10 @@ pub fn ply_bytes(snapshot: &Snapshot, with_ambient: bool, exposure: f32) -> Vec<
     }
     let triangles = g.indices.len() / 3;
     let mut out = format!(
-        "ply\nformat binary_little_endian 1.0\ncomment nusselt radiosity solution: {}, {} shots, radiance in W m^-2 sr^-1{}\ncomment red/green/blue are sRGB after exposure x{exposure}\nelement vertex {n}\nproperty float x\nproperty float y\nproperty float z\nproperty float radiance_r\nproperty float radiance_g\nproperty float radiance_b\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nelement face {triangles}\nproperty list uchar uint vertex_indices\nend_header\n",
+        "ply\nformat binary_little_endian 1.0\ncomment nusselt radiosity solution: {}, {} solver, {} steps, radiance in W m^-2 sr^-1{}\ncomment red/green/blue are sRGB after exposure x{exposure}\nelement vertex {n}\nproperty float x\nproperty float y\nproperty float z\nproperty float radiance_r\nproperty float radiance_g\nproperty float radiance_b\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nelement face {triangles}\nproperty list uchar uint vertex_indices\nend_header\n",
         snapshot.scene_name,
-        snapshot.stats.shots,
+        snapshot.stats.solver,
+        snapshot.stats.steps,
         if with_ambient {
             ", ambient term included"
         } else {

@@ -1,9 +1,10 @@
 //! The live viewer: open a model and watch it brighten from dark as the solver shoots.
 //!
 //! Layout (after rerun's viewer: UI split by concern, commands handled in one place):
-//! - [`solver_thread`]: a named thread owns the [`crate::solver::ProgressiveSolver`]; the
-//!   UI sends [`solver_thread::Command`]s through a bounded channel and takes a latest-wins
-//!   [`snapshot::Snapshot`]; the thread wakes the UI when it publishes.
+//! - [`solver_thread`]: a named thread owns the solver (any [`crate::solver::Solver`],
+//!   chosen in the panel or by `--solver`); the UI sends [`solver_thread::Command`]s
+//!   through a bounded channel and takes a latest-wins [`snapshot::Snapshot`]; the thread
+//!   wakes the UI when it publishes.
 //! - [`render`]: wgpu pipelines in egui-wgpu's callback resources (egui's `custom3d_wgpu`
 //!   pattern); per-vertex radiance, exposure and linear→sRGB in `shaders/viewport.wgsl`.
 //! - [`app`]: the eframe app: side panel ([`panels`]), viewport (`viewport.rs`) with orbit
@@ -47,6 +48,8 @@ pub struct ViewerOptions {
 pub struct UiOptions {
     pub element_size: Option<f64>,
     pub method: FormFactorMethod,
+    /// The solver to start with (`--solver`).
+    pub solver: crate::solver::SolverKind,
     /// The GPU hemicube, when `method` is `gpu-hemicube` (made on first use otherwise).
     pub raster: Option<std::sync::Arc<dyn crate::formfactor::hemicube::ItemBufferRaster>>,
     /// Window size in points.

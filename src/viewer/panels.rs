@@ -5,14 +5,17 @@
 use std::path::PathBuf;
 
 use eframe::egui;
-use egui_plot::{Legend, Line, Plot, PlotPoints};
 
 use crate::formfactor::FormFactorMethod;
 use crate::scene::MAX_REFLECTANCE;
+use crate::solver::SolverKind;
 
 use super::automation::parse_channel;
 use super::snapshot::Snapshot;
 use super::solver_thread::Command;
+
+mod solver_choice;
+mod stats;
 
 /// Everything the user can ask for.
 #[derive(Debug)]
@@ -20,6 +23,7 @@ pub enum Action {
     Solver(Command),
     Remesh(f64),
     SetMethod(FormFactorMethod),
+    SetSolver(SolverKind),
     OpenDialog,
     Open(PathBuf),
     OpenBuiltin(String),
@@ -92,6 +96,9 @@ pub struct PanelState {
     pub element_size: f64,
     pub element_size_text: String,
     pub element_size_error: Option<String>,
+    /// The ω field of SOR (empty: estimated from the first sweeps).
+    pub omega_text: String,
+    pub omega_error: Option<String>,
     pub editor: Option<MaterialEditor>,
     pub selection: Option<u32>,
     pub recent: Vec<PathBuf>,
@@ -172,9 +179,9 @@ pub fn side_panel(
         display_section(ui, state, actions);
         ui.separator();
         if let Some(s) = snap {
-            stats_section(ui, s, state.solver_failure.is_some());
+            stats::stats_section(ui, s, state.solver_failure.is_some());
             if state.show_plot {
-                plot_section(ui, s);
+                stats::plot_section(ui, s);
             }
             ui.checkbox(&mut state.show_plot, "convergence plot");
             ui.separator();
@@ -208,7 +215,11 @@ fn solver_section(
         } else if ui.button("Play").clicked() {
             actions.push(Action::Solver(Command::Play));
         }
-        if ui.button("Step").on_hover_text("one shot").clicked() {
+        if ui
+            .button("Step")
+            .on_hover_text("one step: a shot, or a matrix row, or a sweep")
+            .clicked()
+        {
             actions.push(Action::Solver(Command::Step));
         }
         if ui.button("Reset").on_hover_text("back to dark").clicked() {
@@ -227,6 +238,7 @@ fn solver_section(
         if method != s.method {
             actions.push(Action::SetMethod(method));
         }
+        solver_choice::solver_choice(ui, state, s.solver_kind, actions);
         // Element size: a log slider (applied when released) and a validated field.
         let diag = (s.geometry.bounds_max - s.geometry.bounds_min)
             .length()
@@ -289,70 +301,6 @@ fn display_section(ui: &mut egui::Ui, state: &mut PanelState, actions: &mut Vec<
             actions.push(Action::ResetView);
         }
     });
-}
-
-fn stats_section(ui: &mut egui::Ui, s: &Snapshot, failed: bool) {
-    let st = &s.stats;
-    egui::Grid::new("stats").num_columns(2).show(ui, |ui| {
-        let row = |ui: &mut egui::Ui, k: &str, v: String| {
-            ui.label(k);
-            ui.monospace(v);
-            ui.end_row();
-        };
-        row(
-            ui,
-            "elements",
-            format!("{} ({} patches)", st.elements, st.patches),
-        );
-        row(ui, "shots", st.shots.to_string());
-        row(ui, "shots/s", format!("{:.1}", st.shots_per_second));
-        row(ui, "unshot", format!("{:.4} %", 100.0 * st.unshot_fraction));
-        row(ui, "elapsed", format!("{:.2} s", st.elapsed_seconds));
-        let a = s.ambient;
-        row(
-            ui,
-            "ambient",
-            format!("{:.4} {:.4} {:.4}", a[0], a[1], a[2]),
-        );
-        let status = if failed {
-            "solver failed (see messages); last image kept"
-        } else if st.converged {
-            "converged"
-        } else if st.limit_reached {
-            "stopped at shot limit"
-        } else if st.playing {
-            "running"
-        } else {
-            "paused"
-        };
-        row(ui, "status", status.into());
-    });
-}
-
-fn plot_section(ui: &mut egui::Ui, s: &Snapshot) {
-    // Log scales: plot log10 of both axes and label the ticks as powers of ten.
-    let pts = |f: fn(&super::snapshot::HistoryPoint) -> f64| -> PlotPoints<'static> {
-        s.history
-            .iter()
-            .filter(|p| p.seconds > 0.0 && f(p) > 0.0)
-            .map(|p| [p.seconds.log10(), f(p).log10()])
-            .collect::<Vec<_>>()
-            .into()
-    };
-    let pow10 = |m: egui_plot::GridMark, _: &std::ops::RangeInclusive<f64>| {
-        format!("1e{}", m.value.round())
-    };
-    Plot::new("convergence")
-        .height(150.0)
-        .legend(Legend::default())
-        .x_axis_label("time (s, log)")
-        .x_axis_formatter(pow10)
-        .y_axis_formatter(pow10)
-        .allow_scroll(false)
-        .show(ui, |p| {
-            p.line(Line::new("unshot fraction", pts(|p| p.unshot_fraction)));
-            p.line(Line::new("ambient (mean)", pts(|p| p.ambient)));
-        });
 }
 
 fn rgb_rows(

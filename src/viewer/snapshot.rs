@@ -22,7 +22,7 @@ use crate::geometry::Bvh;
 use crate::geometry::bvh::TriangleInput;
 use crate::mesh::{Mesh, PatchId};
 use crate::scene::{Camera, Material, Rgb};
-use crate::solver::ProgressiveSolver;
+use crate::solver::SolverKind;
 
 /// Mesh arrays for drawing and picking; rebuilt only when the mesh changes.
 #[derive(Debug)]
@@ -149,30 +149,40 @@ impl Geometry {
 pub struct HistoryPoint {
     /// Solve time in seconds since the last (re)start, pauses excluded.
     pub seconds: f64,
-    pub shots: usize,
-    pub unshot_fraction: f64,
-    /// Channel mean of the ambient term.
+    /// Steps of the solver (shots; matrix rows, then sweeps) since the last (re)start.
+    pub steps: usize,
+    /// The solver's relative residual (for shooting, the unshot fraction).
+    pub residual: f64,
+    /// Channel mean of the ambient term (0 for solvers without one).
     pub ambient: f64,
 }
 
 /// Counters shown in the stats panel.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Stats {
+    /// The solver's name (`shooting`, `jacobi`, `gauss-seidel`, `sor`, `cg`).
+    pub solver: &'static str,
+    /// The solver's own line (shots and overshooting, sweeps and ω, …).
+    pub report: String,
+    /// Memory held by stored form factors.
+    pub matrix_bytes: usize,
     pub elements: usize,
     pub patches: usize,
-    pub shots: usize,
+    /// Steps since the last (re)start: shots, or matrix rows and then sweeps.
+    pub steps: usize,
     /// Over the last second of solving.
-    pub shots_per_second: f64,
-    pub unshot_fraction: f64,
+    pub steps_per_second: f64,
+    /// Relative residual `Σ|r_i|A_i / Σ|E_i|A_i`; for shooting, the unshot fraction.
+    pub residual: f64,
     /// Solve time since the last (re)start, pauses excluded.
     pub elapsed_seconds: f64,
     pub playing: bool,
-    /// Nothing left to shoot above the stop threshold.
+    /// The residual is below the stop threshold, or the solver has nothing left to do.
     pub converged: bool,
-    /// Stopped at the scripted shot limit.
+    /// Stopped at the scripted step limit.
     pub limit_reached: bool,
+    /// The patch the last shot came from (shooting only).
     pub last_shooter: Option<u32>,
-    pub next_shooter: Option<u32>,
 }
 
 /// The latest state of the solve, ready to draw.
@@ -205,11 +215,11 @@ pub struct Snapshot {
     pub scene_camera: Camera,
     pub two_sided: bool,
     pub method: FormFactorMethod,
+    pub solver_kind: SolverKind,
 }
 
 /// Per-drawn-vertex reflectance of the current materials.
-pub(crate) fn vertex_reflectance(geometry: &Geometry, solver: &ProgressiveSolver) -> Vec<[f32; 3]> {
-    let mats = &solver.scene().materials;
+pub(crate) fn vertex_reflectance(geometry: &Geometry, mats: &[Material]) -> Vec<[f32; 3]> {
     geometry
         .patch
         .iter()

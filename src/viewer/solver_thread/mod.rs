@@ -1,5 +1,6 @@
-//! The solver thread: it owns the [`ProgressiveSolver`]; the UI talks to it through a
-//! bounded command channel and reads a latest-wins [`Snapshot`].
+//! The solver thread: it owns the solver (any [`crate::solver::Solver`], chosen by
+//! [`SolverKind`]); the UI talks to it through a bounded command channel and reads a
+//! latest-wins [`Snapshot`].
 //!
 //! Why this shape (after rerun's viewer and egui's custom3d demo): the UI must never wait
 //! for a shot, which can take from microseconds (cached form-factor row) to a second (a new
@@ -7,7 +8,7 @@
 //! - commands go through a `sync_channel`; the UI uses `try_send` and keeps what did not
 //!   fit for the next frame, so it never blocks;
 //! - commands that change the problem (edits, re-mesh, reset, load, pause, quit) also raise
-//!   a cancel flag that [`ProgressiveSolver::shoot`] polls, so a long shot is abandoned
+//!   a cancel flag that [`crate::solver::Solver::step`] polls, so a long step is abandoned
 //!   (leaving the solver untouched) and the command applies within milliseconds;
 //! - results are published by swapping an `Arc<Snapshot>` into a slot under a mutex held
 //!   only for the swap, never while shooting; the UI takes it when it draws;
@@ -18,6 +19,7 @@
 //! pass over the mesh; the first state (emitters only) and the first shots are published
 //! at once so light shows up immediately.
 
+mod switch;
 mod worker;
 
 use std::collections::VecDeque;
@@ -30,7 +32,7 @@ use std::time::{Duration, Instant};
 
 use crate::formfactor::FormFactorMethod;
 use crate::scene::{MaterialId, Scene};
-use crate::solver::SolverConfig;
+use crate::solver::{SolverConfig, SolverKind};
 
 use super::snapshot::Snapshot;
 use worker::Worker;
@@ -64,11 +66,15 @@ pub enum Command {
     ResetMaterials,
     /// Switch the form-factor method (restarts the solve).
     SetMethod(FormFactorMethod),
+    /// Switch the solver, keeping the mesh and cached rows (restarts from dark). Refused
+    /// with an [`Event::Error`] (the current solver goes on) when the new kind would refuse
+    /// the problem ([`SolverKind::check`]).
+    SetSolver(SolverKind),
     /// Load an OBJ file; on error the current scene stays.
     LoadPath(PathBuf),
     /// Replace the scene with one loaded elsewhere.
     LoadScene(Box<Scene>),
-    /// Stop shooting below this unshot fraction.
+    /// Stop below this residual (for shooting, the unshot fraction).
     SetStopThreshold(f64),
     Quit,
     /// Test hook: the next shot panics with this message, to check that a panic in the
@@ -134,11 +140,14 @@ pub type Waker = Box<dyn Fn() + Send + 'static>;
 #[derive(Clone, Debug)]
 pub struct ThreadConfig {
     pub solver: SolverConfig,
+    /// The solver to start with (and to build for loaded scenes).
+    pub kind: SolverKind,
     /// Start shooting at once.
     pub play: bool,
-    /// Stop shooting below this unshot fraction.
+    /// Stop stepping below this residual (for shooting, the unshot fraction).
     pub stop_unshot: f64,
-    /// Stop shooting after this many shots since the last (re)start (scripted runs).
+    /// Stop after this many steps (shots, matrix rows, sweeps) since the last (re)start
+    /// (scripted runs).
     pub max_shots: Option<usize>,
     /// Threads that compute form-factor rows; `None` = one per core
     /// (`available_parallelism`). Leaving the UI a core was tried on the 2-core test
@@ -160,6 +169,7 @@ impl Default for ThreadConfig {
     fn default() -> Self {
         Self {
             solver: SolverConfig::default(),
+            kind: SolverKind::Shooting,
             play: true,
             stop_unshot: 1e-6,
             max_shots: None,

@@ -1,5 +1,7 @@
-//! The solver thread's side: a [`Worker`] owns the [`ProgressiveSolver`], applies
-//! [`Command`]s, shoots while there is something to shoot, and publishes [`Snapshot`]s.
+//! The solver thread's side: a [`Worker`] owns the solver (a `Box<dyn Solver>` of the
+//! chosen [`SolverKind`]), applies [`Command`]s, steps it while there is something to do,
+//! and publishes [`Snapshot`]s. Changing the mesh, the form-factor method or the solver
+//! goes through [`Solver::into_parts`] (in `switch.rs`).
 
 use std::panic::AssertUnwindSafe;
 use std::sync::Arc;
@@ -7,11 +9,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TryRecvError, TrySendError};
 use std::time::{Duration, Instant};
 
-use crate::formfactor::FormFactorMethod;
-use crate::formfactor::hemicube::ItemBufferRaster;
 use crate::mesh::PatchId;
 use crate::scene::{LoadOptions, Material, MaterialId, Rgb, Scene};
-use crate::solver::{ProgressiveSolver, SolverConfig};
+use crate::solver::{Problem, Solver, SolverConfig, SolverKind};
 
 use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, Stats, vertex_reflectance};
 use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
@@ -22,7 +22,12 @@ pub(super) struct Worker {
     cancel: Arc<AtomicBool>,
     latest: Arc<Latest<Arc<Snapshot>>>,
     waker: Waker,
-    solver: Option<ProgressiveSolver>,
+    pub(super) solver: Option<Box<dyn Solver>>,
+    /// The kind of `solver` (and of the next one built, on a load).
+    pub(super) kind: SolverKind,
+    /// The solver's last step found nothing to do (not cancelled): stepping stops until a
+    /// command changes something.
+    exhausted: bool,
     loaded_materials: Arc<Vec<Material>>,
     geometry: Option<Arc<Geometry>>,
     reflectance: Arc<Vec<[f32; 3]>>,
@@ -37,7 +42,7 @@ pub(super) struct Worker {
     steps: usize,
     stop_unshot: f64,
     max_shots: Option<usize>,
-    config: SolverConfig,
+    pub(super) config: SolverConfig,
     history: Arc<Vec<HistoryPoint>>,
     /// Solve time since the last (re)start, pauses excluded.
     elapsed: Duration,
@@ -72,6 +77,8 @@ impl Worker {
             latest,
             waker,
             solver: None,
+            kind: config.kind,
+            exhausted: false,
             loaded_materials: Arc::new(Vec::new()),
             geometry: None,
             reflectance: Arc::new(Vec::new()),
@@ -150,9 +157,10 @@ impl Worker {
     ) -> Option<T> {
         let scene_rev = self.scene_rev;
         let scene = scene.unwrap_or_else(|| {
-            self.solver
-                .as_ref()
-                .map_or_else(|| "no scene".to_string(), |s| s.scene().name.clone())
+            self.solver.as_ref().map_or_else(
+                || "no scene".to_string(),
+                |s| s.problem().scene.name.clone(),
+            )
         });
         match std::panic::catch_unwind(AssertUnwindSafe(|| work(self))) {
             Ok(v) => Some(v),
@@ -182,9 +190,9 @@ impl Worker {
             return false;
         };
         (self.playing || self.steps > 0)
-            && solver.unshot_fraction() > self.stop_unshot
-            && self.max_shots.is_none_or(|m| solver.shots() < m)
-            && solver.next_shooter().is_some()
+            && !self.exhausted
+            && solver.residual() > self.stop_unshot
+            && self.max_shots.is_none_or(|m| solver.steps() < m)
     }
 
     fn due(&self) -> bool {
@@ -203,19 +211,22 @@ impl Worker {
             return;
         };
         let start = Instant::now();
-        let shot = solver.shoot(&self.cancel);
+        let stepped = solver.step(&self.cancel);
         self.elapsed += start.elapsed();
-        if shot.is_none() {
-            // Cancelled (a command is waiting) or nothing left: nothing changed.
+        if !stepped {
+            // Cancelled (a command is waiting: nothing changed), or nothing left to do.
+            if !self.cancel.load(Ordering::Relaxed) {
+                self.exhausted = true;
+                self.dirty = true;
+            }
             return;
         }
         self.steps = self.steps.saturating_sub(1);
-        let ambient = solver.ambient();
         let point = HistoryPoint {
             seconds: self.elapsed.as_secs_f64(),
-            shots: solver.shots(),
-            unshot_fraction: solver.unshot_fraction(),
-            ambient: (ambient.x + ambient.y + ambient.z) / 3.0,
+            steps: solver.steps(),
+            residual: solver.residual(),
+            ambient: solver.ambient_mean(),
         };
         let history = Arc::make_mut(&mut self.history);
         if history.len() >= HISTORY_CAPACITY {
@@ -228,32 +239,34 @@ impl Worker {
         }
         history.push(point);
         self.dirty = true;
-        // The first shots and single steps show at once; later ones at most every
+        // The first steps and single steps show at once; later ones at most every
         // PUBLISH_INTERVAL, or when the solve just ended.
-        if point.shots <= 3 || self.due() || !self.wants_to_shoot() {
+        if point.steps <= 3 || self.due() || !self.wants_to_shoot() {
             self.publish();
         }
     }
 
-    fn send_event(&self, event: Event) {
+    pub(super) fn send_event(&self, event: Event) {
         if let Err(TrySendError::Full(e)) = self.events.try_send(event) {
             eprintln!("viewer: dropped a notice, the UI is not reading them: {e:?}");
         }
     }
 
-    /// Replaces the solver with one for `scene`; on error the old one stays.
+    /// Replaces the solver with one of the current kind for `scene`; on error the old one
+    /// stays. A kind that refuses the new problem (its matrix over the memory budget)
+    /// falls back to shooting, with an error event saying why.
     fn install(&mut self, scene: Scene, config: SolverConfig) {
         let name = scene.name.clone();
         let source = scene.source.clone();
-        match ProgressiveSolver::new(scene, config.clone()) {
-            Ok(solver) => {
-                self.loaded_materials = Arc::new(solver.scene().materials.clone());
-                self.scene_camera = crate::render::view::default_camera(solver.scene());
+        match Problem::new(scene, config.clone()) {
+            Ok(problem) => {
+                self.loaded_materials = Arc::new(problem.scene.materials.clone());
+                self.scene_camera = crate::render::view::default_camera(&problem.scene);
                 self.config = config;
-                self.solver = Some(solver);
+                self.solver = None;
+                self.build(problem, Default::default());
                 self.scene_rev += 1;
                 self.new_geometry();
-                self.restart_clock();
                 self.send_event(Event::Loaded { name, source });
             }
             Err(e) => self.send_event(Event::Error(format!("{name}: {e}"))),
@@ -261,22 +274,24 @@ impl Worker {
         self.dirty = true;
     }
 
-    fn new_geometry(&mut self) {
+    pub(super) fn new_geometry(&mut self) {
         let Some(solver) = &self.solver else { return };
-        let g = Geometry::from_mesh(self.next_id, solver.mesh());
+        let g = Geometry::from_mesh(self.next_id, &solver.problem().mesh);
         self.next_id += 1;
-        self.reflectance = Arc::new(vertex_reflectance(&g, solver));
+        self.reflectance = Arc::new(vertex_reflectance(&g, &solver.problem().scene.materials));
         self.reflectance_rev += 1;
         self.geometry = Some(Arc::new(g));
     }
 
-    fn restart_clock(&mut self) {
+    pub(super) fn restart_clock(&mut self) {
         self.elapsed = Duration::ZERO;
         self.history = Arc::new(Vec::new());
         self.dirty = true;
     }
 
     fn apply(&mut self, command: Command) -> Flow {
+        // Whatever the command, the solver may have something to do again.
+        self.exhausted = false;
         match command {
             Command::Quit => return Flow::Quit,
             Command::PanicOnNextShot(message) => self.panic_on_next_shot = Some(message),
@@ -295,18 +310,7 @@ impl Worker {
                     self.restart_clock();
                 }
             }
-            Command::Remesh(size) => {
-                if let Some(s) = self.solver.as_mut() {
-                    match s.remesh(size) {
-                        Ok(()) => {
-                            self.config.element_size = Some(size);
-                            self.new_geometry();
-                            self.restart_clock();
-                        }
-                        Err(e) => self.send_event(Event::Error(format!("re-mesh: {e}"))),
-                    }
-                }
-            }
+            Command::Remesh(size) => self.remesh(size),
             Command::SetMaterial {
                 material,
                 reflectance,
@@ -318,36 +322,14 @@ impl Worker {
                     let current = self
                         .solver
                         .as_ref()
-                        .and_then(|s| s.scene().materials.get(i).cloned());
+                        .and_then(|s| s.problem().scene.materials.get(i).cloned());
                     if current.is_some_and(|c| c != *m) {
                         self.set_material(MaterialId(i as u32), m.reflectance, m.emission);
                     }
                 }
             }
-            Command::SetMethod(method) => {
-                if method == FormFactorMethod::GpuHemicube && self.config.raster.is_none() {
-                    // Started on first use: creating a device takes a moment.
-                    match crate::gpu::GpuHemicube::new() {
-                        Ok(gpu) => {
-                            let raster: Arc<dyn ItemBufferRaster> = Arc::new(gpu);
-                            self.config.raster = Some(raster.clone());
-                            if let Some(s) = self.solver.as_mut() {
-                                s.set_raster(Some(raster));
-                            }
-                        }
-                        Err(e) => self.send_event(Event::Error(format!("gpu-hemicube: {e}"))),
-                    }
-                }
-                if let Some(s) = self.solver.as_mut() {
-                    match s.set_method(method) {
-                        Ok(()) => {
-                            self.config.method = method;
-                            self.restart_clock();
-                        }
-                        Err(e) => self.send_event(Event::Error(e.to_string())),
-                    }
-                }
-            }
+            Command::SetMethod(method) => self.set_method(method),
+            Command::SetSolver(kind) => self.set_solver(kind),
             Command::LoadPath(path) => match Scene::load_obj(&path, &LoadOptions::default()) {
                 Ok(scene) => self.load(scene),
                 Err(e) => self.send_event(Event::Error(e.to_string())),
@@ -386,7 +368,8 @@ impl Worker {
             Ok(()) => {
                 self.edit_unpublished = true;
                 if let Some(g) = &self.geometry {
-                    self.reflectance = Arc::new(vertex_reflectance(g, s));
+                    self.reflectance =
+                        Arc::new(vertex_reflectance(g, &s.problem().scene.materials));
                     self.reflectance_rev += 1;
                 }
             }
@@ -398,12 +381,13 @@ impl Worker {
         let (Some(solver), Some(geometry)) = (&self.solver, &self.geometry) else {
             return;
         };
-        let per_vertex = solver.mesh().vertex_values(&solver.element_radiance(false));
+        let problem = solver.problem();
+        let per_vertex = problem.mesh.vertex_values(&solver.element_radiance(false));
         let radiance = geometry.expand(&per_vertex);
         debug_assert!(radiance.iter().flatten().all(|x| x.is_finite()));
         let ambient = solver.ambient();
         debug_assert!(ambient.is_finite());
-        let shots_per_second = {
+        let steps_per_second = {
             let h = &self.history;
             match (
                 h.last(),
@@ -411,24 +395,26 @@ impl Worker {
                     .rev()
                     .find(|p| h.last().is_some_and(|l| l.seconds - p.seconds >= 1.0)),
             ) {
-                (Some(l), Some(p)) => (l.shots - p.shots) as f64 / (l.seconds - p.seconds),
-                (Some(l), None) if l.seconds > 0.0 => l.shots as f64 / l.seconds,
+                (Some(l), Some(p)) => (l.steps - p.steps) as f64 / (l.seconds - p.seconds),
+                (Some(l), None) if l.seconds > 0.0 => l.steps as f64 / l.seconds,
                 _ => 0.0,
             }
         };
-        let unshot_fraction = solver.unshot_fraction();
+        let residual = solver.residual();
         let stats = Stats {
+            solver: solver.name(),
+            report: solver.report(),
+            matrix_bytes: solver.matrix_bytes(),
             elements: geometry.elements,
             patches: geometry.patches,
-            shots: solver.shots(),
-            shots_per_second,
-            unshot_fraction,
+            steps: solver.steps(),
+            steps_per_second,
+            residual,
             elapsed_seconds: self.elapsed.as_secs_f64(),
             playing: self.playing,
-            converged: unshot_fraction <= self.stop_unshot || solver.next_shooter().is_none(),
-            limit_reached: self.max_shots.is_some_and(|m| solver.shots() >= m),
+            converged: residual <= self.stop_unshot || self.exhausted,
+            limit_reached: self.max_shots.is_some_and(|m| solver.steps() >= m),
             last_shooter: solver.last_shooter().map(|p: PatchId| p.0),
-            next_shooter: solver.next_shooter().map(|p| p.0),
         };
         self.seq += 1;
         let now = Instant::now();
@@ -446,15 +432,16 @@ impl Worker {
             reflectance_rev: self.reflectance_rev,
             ambient: ambient.as_vec3().to_array(),
             stats,
-            materials: Arc::new(solver.scene().materials.clone()),
+            materials: Arc::new(problem.scene.materials.clone()),
             loaded_materials: self.loaded_materials.clone(),
             history: self.history.clone(),
-            scene_name: solver.scene().name.clone(),
-            scene_source: solver.scene().source.clone(),
+            scene_name: problem.scene.name.clone(),
+            scene_source: problem.scene.source.clone(),
             scene_rev: self.scene_rev,
             scene_camera: self.scene_camera,
-            two_sided: solver.scene().two_sided,
-            method: solver.config().method,
+            two_sided: problem.scene.two_sided,
+            method: problem.config.method,
+            solver_kind: self.kind,
         };
         self.latest.publish(Arc::new(snapshot));
         self.last_publish = Some(now);
