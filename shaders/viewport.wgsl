@@ -5,7 +5,7 @@
 
 struct Uniforms {
     view_proj: mat4x4<f32>,
-    // rgb: ambient term added as reflectance * ambient (zero when the toggle is off);
+    // rgb: multiplier of the per-vertex display correction (1 with the ambient toggle on, 0 off);
     // w: exposure multiplier.
     ambient_exposure: vec4<f32>,
     // x: shooting patch, y: selected patch (0xffffffff = none), z: flags (bit 0: highlight
@@ -22,7 +22,7 @@ struct Uniforms {
 struct MeshIn {
     @location(0) position: vec3<f32>,
     @location(1) patch_id: u32,
-    @location(2) reflectance: vec3<f32>,
+    @location(2) correction: vec3<f32>,
     @location(3) radiance: vec3<f32>,
 };
 
@@ -36,7 +36,7 @@ struct MeshOut {
 fn vs_mesh(v: MeshIn) -> MeshOut {
     var out: MeshOut;
     out.clip = u.view_proj * vec4<f32>(v.position, 1.0);
-    out.radiance = v.radiance + v.reflectance * u.ambient_exposure.rgb;
+    out.radiance = v.radiance + v.correction * u.ambient_exposure.rgb;
     out.patch_id = v.patch_id;
     return out;
 }

@@ -361,7 +361,7 @@ fn ply_export_holds_the_snapshot() {
     for (k, &v) in s.geometry.source_vertex.iter().enumerate().step_by(97) {
         let o = at + v as usize * 27;
         for c in 0..3 {
-            let want = s.radiance[k][c] + s.reflectance[k][c] * s.ambient[c];
+            let want = s.radiance[k][c] + s.correction[k][c];
             assert_eq!(f(o + 12 + 4 * c), want);
             assert_eq!(bytes[o + 24 + c], nusselt::viewer::export::srgb8(want, 2.0));
             assert_eq!(f(o + 4 * c), s.geometry.positions[k][c]);

@@ -48,16 +48,12 @@ pub fn ply_bytes(snapshot: &Snapshot, with_ambient: bool, exposure: f32) -> Vec<
         .unwrap_or(0);
     let mut position = vec![[0f32; 3]; n];
     let mut radiance = vec![[0f32; 3]; n];
-    let ambient = if with_ambient {
-        snapshot.ambient
-    } else {
-        [0.0; 3]
-    };
+    let ambient = if with_ambient { 1.0 } else { 0.0 };
     // Drawn vertices that share a display vertex (patch boundaries) hold the same values.
     for (k, &v) in g.source_vertex.iter().enumerate() {
         position[v as usize] = g.positions[k];
-        let (b, rho) = (snapshot.radiance[k], snapshot.reflectance[k]);
-        radiance[v as usize] = [0, 1, 2].map(|c| b[c] + rho[c] * ambient[c]);
+        let (b, g) = (snapshot.radiance[k], snapshot.correction[k]);
+        radiance[v as usize] = [0, 1, 2].map(|c| b[c] + g[c] * ambient);
     }
     let triangles = g.indices.len() / 3;
     let mut out = format!(

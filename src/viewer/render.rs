@@ -1,7 +1,7 @@
 //! The viewport's GPU side, after egui's `custom3d_wgpu` demo: the pipelines and buffers
 //! live in egui-wgpu's callback resources; each frame a [`ViewportCallback`] carries the
 //! latest snapshot (an `Arc`, no copy) and the uniforms; `prepare` uploads only what
-//! changed since the last upload (mesh, reflectance, radiance, each by its own id) and
+//! changed since the last upload (mesh; radiance and display correction, by their ids) and
 //! `paint` draws into egui's render pass, whose depth buffer eframe creates
 //! (`NativeOptions::depth_buffer`).
 
@@ -45,7 +45,6 @@ pub struct Overlays {
 /// GPU buffers of one snapshot.
 struct MeshBuffers {
     geometry_id: u64,
-    reflectance_rev: u64,
     radiance_seq: u64,
     vertex_count: u32,
     index_count: u32,
@@ -53,7 +52,8 @@ struct MeshBuffers {
     positions: wgpu::Buffer,
     /// Three drawn vertices per triangle (u32).
     indices: wgpu::Buffer,
-    reflectance: wgpu::Buffer,
+    /// The display correction (`Snapshot::correction`), scaled by the ambient uniform.
+    correction: wgpu::Buffer,
     radiance: wgpu::Buffer,
     element_lines: wgpu::Buffer,
     element_line_count: u32,
@@ -130,7 +130,7 @@ impl ViewportResources {
                 shader_location: 1,
             },
         ];
-        let reflectance_attrs = [vec3(2)];
+        let correction_attrs = [vec3(2)];
         let radiance_attrs = [vec3(3)];
         let per_vertex = |stride: u64, attributes| {
             Some(wgpu::VertexBufferLayout {
@@ -141,7 +141,7 @@ impl ViewportResources {
         };
         let mesh_buffers = [
             per_vertex(16, &position_attrs[..]),
-            per_vertex(12, &reflectance_attrs[..]),
+            per_vertex(12, &correction_attrs[..]),
             per_vertex(12, &radiance_attrs[..]),
         ];
         let mesh_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -276,13 +276,12 @@ impl ViewportResources {
                 + g.patch_lines.len() * 12;
             self.mesh = Some(MeshBuffers {
                 geometry_id: g.id,
-                reflectance_rev: u64::MAX,
                 radiance_seq: u64::MAX,
                 vertex_count: g.positions.len() as u32,
                 index_count: g.indices.len() as u32,
                 positions,
                 indices,
-                reflectance: Self::vertex_buffer(device, "nusselt reflectance", n * 12),
+                correction: Self::vertex_buffer(device, "nusselt correction", n * 12),
                 radiance: Self::vertex_buffer(device, "nusselt radiance", n * 12),
                 element_lines,
                 element_line_count: g.element_lines.len() as u32,
@@ -292,12 +291,9 @@ impl ViewportResources {
         }
         let Some(m) = self.mesh.as_mut() else { return };
         let fits = |v: &Vec<[f32; 3]>| v.len() == m.vertex_count as usize;
-        if m.reflectance_rev != snap.reflectance_rev && fits(&snap.reflectance) {
-            queue.write_buffer(&m.reflectance, 0, bytemuck::cast_slice(&snap.reflectance));
-            m.reflectance_rev = snap.reflectance_rev;
-            bytes += snap.reflectance.len() * 12;
-        }
-        if m.radiance_seq != snap.seq && fits(&snap.radiance) {
+        if m.radiance_seq != snap.seq && fits(&snap.radiance) && fits(&snap.correction) {
+            queue.write_buffer(&m.correction, 0, bytemuck::cast_slice(&snap.correction));
+            bytes += snap.correction.len() * 12;
             queue.write_buffer(&m.radiance, 0, bytemuck::cast_slice(&snap.radiance));
             m.radiance_seq = snap.seq;
             bytes += snap.radiance.len() * 12;
@@ -311,7 +307,7 @@ impl ViewportResources {
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_pipeline(&self.mesh_pipeline);
         pass.set_vertex_buffer(0, m.positions.slice(..));
-        pass.set_vertex_buffer(1, m.reflectance.slice(..));
+        pass.set_vertex_buffer(1, m.correction.slice(..));
         pass.set_vertex_buffer(2, m.radiance.slice(..));
         pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
         pass.draw_indexed(0..m.index_count, 0, 0..1);

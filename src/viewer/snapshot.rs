@@ -7,9 +7,8 @@
 //! attribute to highlight the shooting and the selected patch, while radiance is sent once
 //! per vertex instead of once per triangle corner (about 4× fewer bytes per snapshot; see
 //! docs/VIEWER.md). Radiance is stored without the ambient term together with the
-//! per-vertex reflectance, so the ambient toggle is a uniform (`B + ρ·ambient`, exactly
-//! what per-vertex averaging of `B + ρ·ambient` gives, since it is linear and a surface
-//! has one material).
+//! per-vertex display correction `ρ·G` (the solver's ambient term, regional for shooting:
+//! `src/solver/ambient.rs`), so the ambient toggle is a uniform multiplier of it.
 
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -197,10 +196,14 @@ pub struct Snapshot {
     pub geometry: Arc<Geometry>,
     /// Radiance per drawn vertex, without the ambient term.
     pub radiance: Arc<Vec<[f32; 3]>>,
+    /// The display correction per drawn vertex (what `element_radiance(true)` adds to the
+    /// radiosity: the ambient term times the reflectance), drawn when the toggle is on.
+    pub correction: Arc<Vec<[f32; 3]>>,
     /// Reflectance per drawn vertex.
     pub reflectance: Arc<Vec<[f32; 3]>>,
     /// Changes whenever `reflectance` does.
     pub reflectance_rev: u64,
+    /// The solver's global ambient term (channel values), for display of its size.
     pub ambient: [f32; 3],
     pub stats: Stats,
     pub materials: Arc<Vec<Material>>,

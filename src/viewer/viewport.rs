@@ -59,7 +59,8 @@ impl ViewerApp {
             actions.push(Action::Select(snap.geometry.pick(o, d).map(|p| p.0)));
         }
         let view = &self.panel.view;
-        let ambient = if view.ambient { snap.ambient } else { [0.0; 3] };
+        // Multiplies the per-vertex display correction (see `Snapshot::correction`).
+        let ambient = if view.ambient { [1.0; 3] } else { [0.0; 3] };
         let mut flags = 0;
         if view.highlight_shooter {
             flags |= FLAG_SHOOTER;

@@ -382,8 +382,11 @@ impl Worker {
             return;
         };
         let problem = solver.problem();
-        let per_vertex = problem.mesh.vertex_values(&solver.element_radiance(false));
-        let radiance = geometry.expand(&per_vertex);
+        let plain = solver.element_radiance(false);
+        let shown = solver.element_radiance(true);
+        let correction: Vec<Rgb> = shown.iter().zip(&plain).map(|(s, b)| *s - *b).collect();
+        let radiance = geometry.expand(&problem.mesh.vertex_values(&plain));
+        let correction = geometry.expand(&problem.mesh.vertex_values(&correction));
         debug_assert!(radiance.iter().flatten().all(|x| x.is_finite()));
         let ambient = solver.ambient();
         debug_assert!(ambient.is_finite());
@@ -428,6 +431,7 @@ impl Worker {
             edit_published: self.edit_published,
             geometry: geometry.clone(),
             radiance: Arc::new(radiance),
+            correction: Arc::new(correction),
             reflectance: self.reflectance.clone(),
             reflectance_rev: self.reflectance_rev,
             ambient: ambient.as_vec3().to_array(),
