@@ -11,7 +11,8 @@ fn furnace(rho: f64, size: f64) -> ProgressiveSolver {
 }
 
 /// The furnace with 1/`size` elements per side and 0.5-wide patches. Plain shooting
-/// (`overshoot` false) is what the ambient-term identities below are about.
+/// (`overshoot` false) and the classic global ambient term are what the identities below
+/// are about (the regional term matches them only to its sampling error: tests/ambient.rs).
 fn furnace_with(rho: f64, size: f64, overshoot: bool) -> ProgressiveSolver {
     let scene = Scene::builtin(
         "furnace",
@@ -27,6 +28,7 @@ fn furnace_with(rho: f64, size: f64, overshoot: bool) -> ProgressiveSolver {
             element_size: Some(size),
             patch_size: Some(0.5),
             overshoot,
+            regional_ambient: false,
             ..Default::default()
         },
     )

@@ -70,6 +70,14 @@ pub struct RenderArgs {
     /// and shadow rays, the indirect rest from the solution; sharper shadows, ~1 s more).
     #[arg(long, default_value = "vertex")]
     pub pass: String,
+    /// Adaptive meshing: solve, halve the elements of every patch where the radiance varies
+    /// across an element by more than this fraction of it (`src/mesh/adaptive.rs`), and solve
+    /// again on the refined mesh; `--adaptive-passes` times (default 2), each to
+    /// `--unshot` (at least 1e-3).
+    #[arg(long, allow_negative_numbers = true)]
+    pub adaptive: Option<f64>,
+    #[arg(long, default_value_t = 2)]
+    pub adaptive_passes: u8,
     /// Stop after this many shots.
     #[arg(long)]
     pub shots: Option<usize>,
@@ -256,6 +264,12 @@ fn render(args: &RenderArgs) -> Result<()> {
         "direct" => true,
         other => bail!("unknown --pass '{other}' (expected vertex or direct)"),
     };
+    if args.adaptive.is_some_and(|t| !(t.is_finite() && t > 0.0)) {
+        bail!("--adaptive must be a positive number (a fraction, e.g. 0.1)");
+    }
+    if args.adaptive_passes > 4 {
+        bail!("--adaptive-passes must be at most 4 (each halves the elements again)");
+    }
     if args.tolerance.is_some_and(|t| !(t.is_finite() && t > 0.0)) {
         bail!("--tolerance must be a positive number");
     }
@@ -318,7 +332,10 @@ fn render(args: &RenderArgs) -> Result<()> {
     };
     let adapter = config.raster.as_ref().map(|r| r.describe());
     let solve_start = Instant::now();
-    let problem = Problem::new(scene, config)?;
+    let mut problem = Problem::new(scene, config)?;
+    if let Some(tolerance) = args.adaptive {
+        problem = refine_adaptively(problem, kind, tolerance, args.adaptive_passes, args.unshot)?;
+    }
     let mut solver = kind.build(problem)?;
     if !args.quiet && !args.json {
         let m = &solver.problem().mesh;
@@ -550,4 +567,47 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
     let pixels = mask.iter().filter(|m| **m).count();
     println!("{}", serde_json::json!({"error": error, "pixels": pixels}));
     Ok(())
+}
+
+/// `passes` rounds of solve, mark, refine (see [`crate::mesh::adaptive`]); returns the
+/// problem on the last refined mesh (to be solved from dark), or the first one unchanged
+/// when nothing needs refining.
+fn refine_adaptively(
+    mut problem: Problem,
+    kind: SolverKind,
+    tolerance: f64,
+    passes: u8,
+    unshot: f64,
+) -> Result<Problem> {
+    let mut levels: Vec<u8> = Vec::new();
+    let never = AtomicBool::new(false);
+    for _ in 0..passes {
+        let mut solver = kind.build(problem)?;
+        let stop = StopCriteria {
+            unshot: unshot.max(1e-3),
+            ..Default::default()
+        };
+        run_solver(solver.as_mut(), &stop, &never, &mut |_, _| {});
+        let radiance = solver.element_radiance(false);
+        let next = crate::mesh::adaptive::refine_levels(
+            &solver.problem().mesh,
+            &radiance,
+            &levels,
+            tolerance,
+            passes,
+        );
+        let (solved, _) = solver.into_parts();
+        if next == levels || next.iter().all(|&l| l == 0) {
+            return Ok(solved);
+        }
+        levels = next;
+        let mesh = crate::mesh::Mesh::build_refined(
+            &solved.scene,
+            solved.mesh.element_size,
+            solved.mesh.patch_size,
+            &levels,
+        )?;
+        problem = Problem::with_mesh(solved.scene, solved.config, mesh)?;
+    }
+    Ok(problem)
 }

@@ -32,7 +32,28 @@ impl Mesh {
         element_size: f64,
         patch_size: f64,
     ) -> Result<Mesh, MeshError> {
-        Mesh::build_from(scene, &Topology::new(scene), element_size, patch_size)
+        Mesh::build_from(scene, &Topology::new(scene), element_size, patch_size, &[])
+    }
+
+    /// [`Mesh::build_with`], with patch `i` of that mesh (its *base* patch) refined
+    /// `levels[i]` times (none past the end of `levels`): a planar patch is cut into patches
+    /// `2^level` times smaller, each with elements `2^level` times smaller; a cluster of
+    /// facets keeps one patch and gets the smaller elements. [`Mesh::base_patch`] maps the
+    /// result back, so levels computed from a solution on one mesh apply to the next
+    /// ([`super::adaptive`]).
+    pub fn build_refined(
+        scene: &Scene,
+        element_size: f64,
+        patch_size: f64,
+        levels: &[u8],
+    ) -> Result<Mesh, MeshError> {
+        Mesh::build_from(
+            scene,
+            &Topology::new(scene),
+            element_size,
+            patch_size,
+            levels,
+        )
     }
 
     /// [`Mesh::build_with`] on faces already grouped (the grouping does not depend on the
@@ -42,7 +63,10 @@ impl Mesh {
         topo: &Topology,
         element_size: f64,
         patch_size: f64,
+        levels: &[u8],
     ) -> Result<Mesh, MeshError> {
+        let scale_of =
+            |base: usize| f64::from(1u32 << levels.get(base).copied().unwrap_or(0).min(8));
         if !(element_size.is_finite() && element_size > 0.0) {
             return Err(MeshError::BadElementSize(element_size));
         }
@@ -138,6 +162,9 @@ impl Mesh {
         }
 
         let mut patches = Vec::new();
+        let mut base_patch: Vec<u32> = Vec::new();
+        // Index of the next patch of the unrefined mesh.
+        let mut next_base = 0usize;
         let mut elements: Vec<Element> = Vec::new();
         let mut element_group: Vec<u32> = Vec::new();
         for unit in &units {
@@ -159,30 +186,70 @@ impl Mesh {
                                 patch_polys.push(corners.to_vec());
                             }
                         });
-                        for pp in patch_polys {
-                            let pid = PatchId(patches.len() as u32);
-                            let first = elements.len();
-                            let pn = polygon::normal(&pp).unwrap_or(normal);
-                            push_elements(&pp, pn, element_size, pid, *face, &mut elements);
-                            element_group.resize(elements.len(), group(*face));
-                            if elements.len() == first {
+                        for base in patch_polys {
+                            // A base patch makes elements (so counts as a patch of the
+                            // unrefined mesh) unless it is degenerate at the base size.
+                            let mut probe = Vec::new();
+                            let base_normal = polygon::normal(&base).unwrap_or(normal);
+                            push_elements(
+                                &base,
+                                base_normal,
+                                element_size,
+                                PatchId(0),
+                                *face,
+                                &mut probe,
+                            );
+                            if probe.is_empty() {
                                 continue;
                             }
-                            patches.push(planar_patch(
-                                scene,
-                                *face,
-                                face_occluder[*face],
-                                pp,
-                                pn,
-                                back,
-                                &elements[first..],
-                                first as u32,
-                            ));
+                            let base_id = next_base;
+                            next_base += 1;
+                            let scale = scale_of(base_id);
+                            let mut pieces: Vec<Vec<DVec3>> = Vec::new();
+                            if scale > 1.0 {
+                                subdivide(&base, patch_size / scale, &mut |c: &[DVec3]| {
+                                    if polygon::area(c) > 0.0 {
+                                        pieces.push(c.to_vec());
+                                    }
+                                });
+                            } else {
+                                pieces.push(base);
+                            }
+                            for pp in pieces {
+                                let pid = PatchId(patches.len() as u32);
+                                let first = elements.len();
+                                let pn = polygon::normal(&pp).unwrap_or(normal);
+                                push_elements(
+                                    &pp,
+                                    pn,
+                                    element_size / scale,
+                                    pid,
+                                    *face,
+                                    &mut elements,
+                                );
+                                element_group.resize(elements.len(), group(*face));
+                                if elements.len() == first {
+                                    continue;
+                                }
+                                base_patch.push(base_id as u32);
+                                patches.push(planar_patch(
+                                    scene,
+                                    *face,
+                                    face_occluder[*face],
+                                    pp,
+                                    pn,
+                                    back,
+                                    &elements[first..],
+                                    first as u32,
+                                ));
+                            }
                         }
                     }
                     Unit::Cluster { parts } => {
                         let pid = PatchId(patches.len() as u32);
                         let first = elements.len();
+                        let base_id = next_base;
+                        let scale = scale_of(base_id);
                         for (poly, f) in parts {
                             let mut poly = poly.clone();
                             if back {
@@ -191,12 +258,14 @@ impl Mesh {
                             let Some(n) = polygon::normal(&poly) else {
                                 continue;
                             };
-                            push_elements(&poly, n, element_size, pid, *f, &mut elements);
+                            push_elements(&poly, n, element_size / scale, pid, *f, &mut elements);
                             element_group.resize(elements.len(), group(*f));
                         }
                         if elements.len() == first {
                             continue;
                         }
+                        next_base += 1;
+                        base_patch.push(base_id as u32);
                         let f0 = parts[0].1;
                         let patch = if parts.len() == 1 {
                             let mut poly = parts[0].0.clone();
@@ -242,6 +311,7 @@ impl Mesh {
             face_occluder,
             surface_count,
             cluster_count,
+            base_patch,
             t_vertices: Vec::new(),
             vertex_weight_start: Vec::new(),
             vertex_weights: Vec::new(),

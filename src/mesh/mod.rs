@@ -18,6 +18,7 @@
 //! Default sizes come from an element budget ([`ELEMENT_BUDGET`]), not from the bounding
 //! box alone: a unit cube and a city block get about the same number of elements.
 
+pub mod adaptive;
 mod build;
 mod footprint;
 mod interpolate;
@@ -216,6 +217,9 @@ pub struct Mesh {
     /// Input faces joined into planar surfaces, and shooters made of clustered facets.
     pub surface_count: usize,
     pub cluster_count: usize,
+    /// For each patch, the patch of the unrefined mesh it is part of (itself unless built
+    /// by [`Mesh::build_refined`]): refinement levels are indexed by these.
+    pub base_patch: Vec<u32>,
     t_vertices: Vec<TVertex>,
     /// Per vertex, the element weights of its value (CSR: `vertex_weights[start[v]..start[v+1]]`).
     vertex_weight_start: Vec<u32>,
@@ -264,7 +268,7 @@ impl Mesh {
             let patch = patch_size
                 .unwrap_or_else(|| default_patch_size(size))
                 .max(size);
-            let mesh = Mesh::build_from(scene, &topo, size, patch)?;
+            let mesh = Mesh::build_from(scene, &topo, size, patch, &[])?;
             let count = mesh.elements.len() as f64;
             tries += 1;
             if count <= 1.05 * target || count <= 1.05 * min_count || tries == 3 {

@@ -1,0 +1,161 @@
+//! Error-driven refinement (Cohen, Greenberg, Immel & Brock 1986, "An efficient radiosity
+//! approach for realistic image synthesis"): after a solve, elements are made smaller where
+//! the radiance varies across them, and the scene is solved again on the refined mesh.
+//!
+//! The indicator of an element is how far the display vertices around it (averages of the
+//! neighbouring elements, [`Mesh::vertex_values`]) are from its own constant value: where
+//! radiance is smooth at the element's scale they agree; at shadow edges, contact lines and
+//! under small lights they do not. It is measured relative to the element's own radiance,
+//! but never against less than 1/10 of the scene's mean (a dark corner is not refined for
+//! noise-sized differences). A patch of the unrefined mesh whose worst element exceeds the
+//! tolerance is refined one level more: cut into four patches, each with elements half the
+//! size ([`Mesh::build_refined`]); the patch size matters as much as the element size,
+//! since a patch shoots its average unshot radiance from its polygon (`--adaptive TOL`,
+//! `render`).
+
+use crate::scene::Rgb;
+
+use super::Mesh;
+
+/// Refinement levels per base patch ([`Mesh::base_patch`]) after a solution `radiance`
+/// (per element) on `mesh`, built with `current` levels: one more where the indicator
+/// exceeds `tolerance`, at most `max_level`.
+pub fn refine_levels(
+    mesh: &Mesh,
+    radiance: &[Rgb],
+    current: &[u8],
+    tolerance: f64,
+    max_level: u8,
+) -> Vec<u8> {
+    let vertex = mesh.vertex_values(radiance);
+    let value = |c: Rgb| (c.x + c.y + c.z) / 3.0;
+    let (mut sum, mut area) = (0.0, 0.0);
+    for (e, b) in mesh.elements.iter().zip(radiance) {
+        sum += value(*b) * e.area;
+        area += e.area;
+    }
+    let floor = 0.1 * sum / area.max(1e-300);
+    let bases = mesh
+        .base_patch
+        .iter()
+        .map(|&b| b as usize + 1)
+        .max()
+        .unwrap_or(0);
+    let level = |b: usize| current.get(b).copied().unwrap_or(0);
+    let mut worst_of_base = vec![0.0f64; bases];
+    for (p, patch) in mesh.patches.iter().enumerate() {
+        let worst = (patch.elements.start..patch.elements.end)
+            .map(|j| {
+                let e = &mesh.elements[j as usize];
+                let own = value(radiance[j as usize]);
+                let spread = e
+                    .vertex_ids()
+                    .iter()
+                    .map(|&v| (value(vertex[v as usize]) - own).abs())
+                    .fold(0.0, f64::max);
+                spread / own.max(floor).max(1e-300)
+            })
+            .fold(0.0, f64::max);
+        let b = mesh.base_patch[p] as usize;
+        worst_of_base[b] = worst_of_base[b].max(worst);
+    }
+    (0..bases)
+        .map(|b| {
+            if worst_of_base[b] > tolerance && level(b) < max_level {
+                level(b) + 1
+            } else {
+                level(b)
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{LoadOptions, Scene};
+
+    fn cornell() -> Scene {
+        Scene::builtin("cornell", &LoadOptions::default()).expect("cornell")
+    }
+
+    #[test]
+    fn refined_patches_tile_their_base_patch_with_smaller_elements() {
+        let scene = cornell();
+        let base = Mesh::build_with(&scene, 60.0, 120.0).expect("mesh");
+        assert_eq!(
+            base.base_patch,
+            (0..base.patches.len() as u32).collect::<Vec<_>>()
+        );
+        let same = Mesh::build_refined(&scene, 60.0, 120.0, &[]).expect("mesh");
+        assert_eq!(same.elements.len(), base.elements.len());
+        // Refine every third base patch once.
+        let levels: Vec<u8> = (0..base.patches.len())
+            .map(|p| u8::from(p % 3 == 0))
+            .collect();
+        let fine = Mesh::build_refined(&scene, 60.0, 120.0, &levels).expect("mesh");
+        let mut area = vec![0.0; base.patches.len()];
+        let mut count = vec![0usize; base.patches.len()];
+        for (p, patch) in fine.patches.iter().enumerate() {
+            let b = fine.base_patch[p] as usize;
+            area[b] += patch.area;
+            count[b] += 1;
+            let elements = (patch.elements.end - patch.elements.start) as usize;
+            let largest = fine.elements[patch.elements.start as usize..patch.elements.end as usize]
+                .iter()
+                .map(|e| e.area)
+                .fold(0.0, f64::max);
+            let limit = if levels[b] == 1 { 30.0 } else { 60.0 };
+            assert!(
+                elements >= 1 && largest <= limit * limit * 1.0001,
+                "patch {p}"
+            );
+        }
+        // The published Cornell walls are not quite planar: pieces of a twisted quad sum to
+        // its area only to ~1e-8.
+        for (b, patch) in base.patches.iter().enumerate() {
+            assert!(
+                (area[b] - patch.area).abs() <= 1e-6 * patch.area,
+                "base {b}: {} vs {}, {} pieces, level {}",
+                area[b],
+                patch.area,
+                count[b],
+                levels[b]
+            );
+            if levels[b] == 0 {
+                assert_eq!(count[b], 1, "unrefined base {b} was cut");
+            }
+        }
+        assert!(fine.patches.len() > base.patches.len());
+    }
+
+    #[test]
+    fn only_patches_where_the_radiance_steps_are_refined() {
+        let scene = cornell();
+        let mesh = Mesh::build_with(&scene, 60.0, 120.0).expect("mesh");
+        // A step across the plane x = 278 (the box's middle), flat elsewhere.
+        let radiance: Vec<Rgb> = mesh
+            .elements
+            .iter()
+            .map(|e| Rgb::splat(if e.centroid.x < 278.0 { 1.0 } else { 0.5 }))
+            .collect();
+        let levels = refine_levels(&mesh, &radiance, &[], 0.1, 2);
+        for (p, patch) in mesh.patches.iter().enumerate() {
+            let near = patch
+                .bounds
+                .iter()
+                .any(|v| (v.x - 278.0).abs() <= 2.0 * 120.0);
+            if levels[p] > 0 {
+                assert!(near, "patch {p} refined away from the step");
+            }
+        }
+        assert!(levels.iter().any(|&l| l > 0), "the step was not refined");
+        assert!(
+            levels.iter().filter(|&&l| l > 0).count() < mesh.patches.len() / 2,
+            "refined far too much"
+        );
+        // A level already at the limit stays there.
+        let capped = refine_levels(&mesh, &radiance, &vec![2; mesh.patches.len()], 0.1, 2);
+        assert!(capped.iter().all(|&l| l == 2));
+    }
+}
