@@ -365,8 +365,14 @@ fn solver_flags_are_checked() {
     refused(&with(&["--tolerance", "nan"]), "--tolerance");
     refused(&with(&["--ambient", "local"]), "unknown --ambient 'local'");
     refused(&with(&["--pass", "gather"]), "unknown --pass 'gather'");
-    refused(&with(&["--adaptive", "-1"]), "--adaptive must be a positive number");
-    refused(&with(&["--adaptive", "0.1", "--adaptive-passes", "9"]), "--adaptive-passes");
+    refused(
+        &with(&["--adaptive", "-1"]),
+        "--adaptive must be a positive number",
+    );
+    refused(
+        &with(&["--adaptive", "0.1", "--adaptive-passes", "9"]),
+        "--adaptive-passes",
+    );
 }
 
 /// `nusselt view --solver/--omega`: the same names as `render`, ω only with sor and in

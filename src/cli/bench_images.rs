@@ -339,60 +339,92 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
     }
 
     // Whole runs to --unshot 1e-4: element budgets (contour rows), then form-factor methods.
-    let mut run_to_end =
-        |label: String, config: SolverConfig, group: &str| -> Result<((f64, f64), (f64, f64))> {
-            eprintln!("cornell image: {label}…");
-            let start = Instant::now();
-            let mut s = ProgressiveSolver::new(scene.clone(), config)?;
-            let stop = StopCriteria {
-                unshot: 1e-4,
-                // The finest meshes need longer than one solver's share.
-                max_seconds: Some(4.0 * seconds),
-                ..Default::default()
-            };
-            s.run(&stop, &never, &mut |_| {});
-            let solved = start.elapsed().as_secs_f64();
-            let bvh = render::display_bvh(&scene, s.mesh());
-            let e = render::relative_rms(
-                &render_elements(s.problem(), &s.element_radiance(true), &bvh, 16),
-                &reference,
-                &mask,
+    let mut run_to_end = |label: String,
+                          config: SolverConfig,
+                          adaptive: Option<f64>,
+                          group: &str|
+     -> Result<((f64, f64), (f64, f64))> {
+        eprintln!("cornell image: {label}…");
+        let start = Instant::now();
+        let mut problem = Problem::new(scene.clone(), config)?;
+        if let Some(tolerance) = adaptive {
+            problem = crate::solver::refine::refine_adaptively(
+                problem,
+                SolverKind::Shooting,
+                tolerance,
+                2,
+                1e-4,
             )?;
-            // Whole time to each image: start, mesh, solve, render.
-            let t = start.elapsed().as_secs_f64();
-            let t_direct = Instant::now();
-            let settings = RenderSettings {
-                width: 256,
-                height: 256,
-                spp: 16,
-                camera,
-                seed: 1,
-            };
-            let direct =
-                render::direct::render_solution(s.problem(), &s.element_radiance(true), &settings);
-            let e_direct = render::relative_rms(&direct, &reference, &mask)?;
-            let t_direct = solved + t_direct.elapsed().as_secs_f64();
-            let n = s.mesh().elements.len();
-            rows.push((
-                format!("{group}, direct pass"),
-                label.clone(),
-                n,
-                s.shots(),
-                t_direct,
-                e_direct,
-            ));
-            rows.push((group.into(), label, n, s.shots(), t, e));
-            Ok(((t, e), (t_direct, e_direct)))
+        }
+        let mut s = ProgressiveSolver::from_problem(problem);
+        let stop = StopCriteria {
+            unshot: 1e-4,
+            // The finest meshes need longer than one solver's share.
+            max_seconds: Some(4.0 * seconds),
+            ..Default::default()
         };
+        s.run(&stop, &never, &mut |_| {});
+        let solved = start.elapsed().as_secs_f64();
+        let bvh = render::display_bvh(&scene, s.mesh());
+        let e = render::relative_rms(
+            &render_elements(s.problem(), &s.element_radiance(true), &bvh, 16),
+            &reference,
+            &mask,
+        )?;
+        // Whole time to each image: start, mesh, solve, render.
+        let t = start.elapsed().as_secs_f64();
+        let t_direct = Instant::now();
+        let settings = RenderSettings {
+            width: 256,
+            height: 256,
+            spp: 16,
+            camera,
+            seed: 1,
+        };
+        let direct =
+            render::direct::render_solution(s.problem(), &s.element_radiance(true), &settings);
+        let e_direct = render::relative_rms(&direct, &reference, &mask)?;
+        let t_direct = solved + t_direct.elapsed().as_secs_f64();
+        let n = s.mesh().elements.len();
+        rows.push((
+            format!("{group}, direct pass"),
+            label.clone(),
+            n,
+            s.shots(),
+            t_direct,
+            e_direct,
+        ));
+        rows.push((group.into(), label, n, s.shots(), t, e));
+        Ok(((t, e), (t_direct, e_direct)))
+    };
     let (mut density, mut density_direct) = (Vec::new(), Vec::new());
     for budget in [1_250, 2_500, 5_000, 10_000, 20_000, 40_000] {
         let config = SolverConfig {
             max_elements: Some(budget),
             ..Default::default()
         };
-        let (vertex, direct) = run_to_end(format!("budget {budget}"), config, "density")?;
+        let (vertex, direct) = run_to_end(format!("budget {budget}"), config, None, "density")?;
         density.push(vertex);
         density_direct.push(direct);
+    }
+    // Adaptive meshing from coarse starts (render --adaptive TOL: two refinement passes).
+    for (budget, tolerance) in [
+        (1_250, 0.1),
+        (2_500, 0.1),
+        (5_000, 0.1),
+        (2_500, 0.05),
+        (5_000, 0.05),
+    ] {
+        let config = SolverConfig {
+            max_elements: Some(budget),
+            ..Default::default()
+        };
+        run_to_end(
+            format!("budget {budget}, --adaptive {tolerance}"),
+            config,
+            Some(tolerance),
+            "adaptive",
+        )?;
     }
     let mut methods = Vec::new();
     for method in [
@@ -408,7 +440,7 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
             method,
             ..Default::default()
         };
-        let (point, _) = run_to_end(format!("{method}"), config, "method")?;
+        let (point, _) = run_to_end(format!("{method}"), config, None, "method")?;
         methods.push(Series {
             label: format!("{method}, 5,000 elements"),
             points: vec![point],
@@ -498,6 +530,42 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
         markers: true,
     });
     curves.extend(methods);
+    let by_elements = |group: &str| -> Vec<(f64, f64)> {
+        rows.iter()
+            .filter(|r| r.0 == group)
+            .map(|r| (r.2 as f64, r.5))
+            .collect()
+    };
+    plot::write(
+        &out.join("cornell_elements"),
+        &Plot {
+            title: "Cornell box: image error against element count",
+            x_label: "elements",
+            y_label: "relative RMS image error",
+            series: vec![
+                Series {
+                    label: "uniform".into(),
+                    points: by_elements("density"),
+                    markers: false,
+                },
+                Series {
+                    label: "uniform + direct pass".into(),
+                    points: by_elements("density, direct pass"),
+                    markers: false,
+                },
+                Series {
+                    label: "adaptive (--adaptive 0.1 / 0.05)".into(),
+                    points: by_elements("adaptive"),
+                    markers: true,
+                },
+                Series {
+                    label: "adaptive + direct pass".into(),
+                    points: by_elements("adaptive, direct pass"),
+                    markers: true,
+                },
+            ],
+        },
+    )?;
     plot::write(
         &out.join("cornell_image"),
         &Plot {

@@ -334,7 +334,13 @@ fn render(args: &RenderArgs) -> Result<()> {
     let solve_start = Instant::now();
     let mut problem = Problem::new(scene, config)?;
     if let Some(tolerance) = args.adaptive {
-        problem = refine_adaptively(problem, kind, tolerance, args.adaptive_passes, args.unshot)?;
+        problem = crate::solver::refine::refine_adaptively(
+            problem,
+            kind,
+            tolerance,
+            args.adaptive_passes,
+            args.unshot,
+        )?;
     }
     let mut solver = kind.build(problem)?;
     if !args.quiet && !args.json {
@@ -567,47 +573,4 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
     let pixels = mask.iter().filter(|m| **m).count();
     println!("{}", serde_json::json!({"error": error, "pixels": pixels}));
     Ok(())
-}
-
-/// `passes` rounds of solve, mark, refine (see [`crate::mesh::adaptive`]); returns the
-/// problem on the last refined mesh (to be solved from dark), or the first one unchanged
-/// when nothing needs refining.
-fn refine_adaptively(
-    mut problem: Problem,
-    kind: SolverKind,
-    tolerance: f64,
-    passes: u8,
-    unshot: f64,
-) -> Result<Problem> {
-    let mut levels: Vec<u8> = Vec::new();
-    let never = AtomicBool::new(false);
-    for _ in 0..passes {
-        let mut solver = kind.build(problem)?;
-        let stop = StopCriteria {
-            unshot: unshot.max(1e-3),
-            ..Default::default()
-        };
-        run_solver(solver.as_mut(), &stop, &never, &mut |_, _| {});
-        let radiance = solver.element_radiance(false);
-        let next = crate::mesh::adaptive::refine_levels(
-            &solver.problem().mesh,
-            &radiance,
-            &levels,
-            tolerance,
-            passes,
-        );
-        let (solved, _) = solver.into_parts();
-        if next == levels || next.iter().all(|&l| l == 0) {
-            return Ok(solved);
-        }
-        levels = next;
-        let mesh = crate::mesh::Mesh::build_refined(
-            &solved.scene,
-            solved.mesh.element_size,
-            solved.mesh.patch_size,
-            &levels,
-        )?;
-        problem = Problem::with_mesh(solved.scene, solved.config, mesh)?;
-    }
-    Ok(problem)
 }

@@ -27,6 +27,7 @@ pub mod gathering;
 pub mod matrix;
 pub mod problem;
 pub mod progressive;
+pub mod refine;
 pub mod rows;
 
 pub use cg::CgSolver;
