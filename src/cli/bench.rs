@@ -41,6 +41,21 @@ pub struct BenchArgs {
     pub cornell_reference: PathBuf,
 }
 
+/// Resets the process's peak resident memory (Linux: `5` to `/proc/self/clear_refs`), so
+/// that [`peak_mb`] after a run is that run's peak. Elsewhere a no-op.
+fn reset_peak() {
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+}
+
+/// Peak resident memory since the last [`reset_peak`] (VmHWM), in MiB; `None` where the
+/// system does not say.
+fn peak_mb() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
 /// The answer a run is measured against.
 enum Truth {
     /// Every element's radiance.
@@ -178,9 +193,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         "scene,solver,step,seconds,residual,error,elements,patches,matrix_mb"
     )?;
     println!(
-        "| scene | solver | elements | patches | steps | seconds | residual | error | s to 1 % | s to 0.1 % | matrix MB |"
+        "| scene | solver | elements | patches | steps | seconds | residual | error | s to 1 % | s to 0.1 % | matrix MB | peak RSS MB |"
     );
-    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     let never = AtomicBool::new(false);
     let mut plots: Vec<(String, Vec<Series>)> = Vec::new();
     for case in &cases {
@@ -190,6 +205,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                 overshoot,
                 ..Default::default()
             };
+            reset_peak();
             let start = Instant::now();
             let problem = Problem::new(case.scene.clone(), config)?;
             let mut solver = match kind.build(problem) {
@@ -262,7 +278,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             });
             let fmt = |x: Option<f64>| x.map(|v| format!("{v:.3}")).unwrap_or("–".into());
             println!(
-                "| {} | {label} | {elements} | {patches} | {} | {:.3} | {:.1e} | {} | {} | {} | {:.1} |",
+                "| {} | {label} | {elements} | {patches} | {} | {:.3} | {:.1e} | {} | {} | {} | {:.1} | {} |",
                 case.name,
                 solver.steps(),
                 start.elapsed().as_secs_f64(),
@@ -273,6 +289,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                 fmt(to_1),
                 fmt(to_01),
                 solver.matrix_bytes() as f64 / (1 << 20) as f64,
+                peak_mb().map(|m| format!("{m:.0}")).unwrap_or("–".into()),
             );
         }
         plots.push((case.name.clone(), case_series));
