@@ -58,14 +58,20 @@ pub fn write(stem: &Path, plot: &Plot) -> Result<()> {
     if series.is_empty() {
         return Ok(());
     }
-    let svg = stem.with_extension("svg");
+    // Not `with_extension`: stems like `convergence-cube-0.99` have dots of their own.
+    let with = |ext: &str| {
+        let mut name = stem.as_os_str().to_owned();
+        name.push(ext);
+        std::path::PathBuf::from(name)
+    };
+    let svg = with(".svg");
     draw(
         SVGBackend::new(&svg, SIZE).into_drawing_area(),
         plot,
         &series,
     )
     .map_err(|e| anyhow!("plotting {}: {e}", svg.display()))?;
-    let png = stem.with_extension("png");
+    let png = with(".png");
     let mut buffer = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
     draw(
         BitMapBackend::with_buffer(&mut buffer, SIZE).into_drawing_area(),
