@@ -185,17 +185,24 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         });
     }
     let path = args.out.join("convergence.csv");
-    let mut csv = std::io::BufWriter::new(
-        std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?,
-    );
-    writeln!(
-        csv,
-        "scene,solver,step,seconds,residual,error,elements,patches,matrix_mb"
-    )?;
-    println!(
-        "| scene | solver | elements | patches | steps | seconds | residual | error | s to 1 % | s to 0.1 % | matrix MB | peak RSS MB |"
-    );
-    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    // Only the image benchmarks selected: leave an earlier convergence.csv alone.
+    let mut csv: Box<dyn Write> = if cases.is_empty() {
+        Box::new(std::io::sink())
+    } else {
+        Box::new(std::io::BufWriter::new(
+            std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?,
+        ))
+    };
+    if !cases.is_empty() {
+        writeln!(
+            csv,
+            "scene,solver,step,seconds,residual,error,elements,patches,matrix_mb"
+        )?;
+        println!(
+            "| scene | solver | elements | patches | steps | seconds | residual | error | s to 1 % | s to 0.1 % | matrix MB | peak RSS MB |"
+        );
+        println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    }
     let never = AtomicBool::new(false);
     let mut plots: Vec<(String, Vec<Series>)> = Vec::new();
     for case in &cases {
@@ -320,7 +327,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     if wanted("edit") || wanted("cornell") {
         live_edits(&args.out)?;
     }
-    eprintln!("wrote {}", path.display());
+    if !cases.is_empty() {
+        eprintln!("wrote {}", path.display());
+    }
     Ok(())
 }
 

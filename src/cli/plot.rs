@@ -119,7 +119,14 @@ where
         .configure_mesh()
         .x_desc(plot.x_label)
         .y_desc(plot.y_label)
-        .x_label_formatter(&|v| format!("{v:.3}"))
+        .x_labels(8)
+        .x_label_formatter(&|v| {
+            if *v >= 100.0 {
+                format!("{v:.0}")
+            } else {
+                format!("{v:.3}")
+            }
+        })
         .y_label_formatter(&|v| format!("{v:.0e}"))
         .label_style(("sans-serif", 15))
         .draw()
