@@ -22,6 +22,7 @@ use super::panels::{self, Action, PanelState, ViewSettings};
 use super::render::ViewportResources;
 use super::snapshot::Snapshot;
 use super::solver_thread::{Command, Event, Latest, SolverHandle, ThreadConfig};
+use super::teach::{TeachCommand, TeachState, TeachView};
 
 const RECENT_KEY: &str = "nusselt.recent";
 const MAX_RECENT: usize = 10;
@@ -54,6 +55,8 @@ pub struct ViewerApp {
     /// Set when a scripted run fails (read by `viewer::run` after the window closes).
     outcome: Arc<Mutex<Option<String>>>,
     persist: bool,
+    /// Teaching mode's panel (`--teach`).
+    pub(super) teach: Option<TeachState>,
 }
 
 /// The solver thread's settings for these options.
@@ -70,7 +73,8 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
             ..Default::default()
         },
         kind: options.solver,
-        play: !options.paused,
+        // Step mode starts paused: the class sees one shot per click.
+        play: !options.paused && options.teach != Some(TeachView::Step),
         max_shots,
         shot_threads: options.solver_threads,
         ..Default::default()
@@ -122,7 +126,15 @@ impl ViewerApp {
             show_plot: true,
         };
         let log_frames = options.automation.frame_log.is_some();
-        Ok(Self {
+        let teach = options.teach.map(TeachState::new);
+        let scripted_steps = match (options.teach, options.automation.screenshot.as_ref()) {
+            (Some(TeachView::Step), Some(plan)) => match plan.when {
+                ScreenshotWhen::Shots(n) => n,
+                _ => 0,
+            },
+            _ => 0,
+        };
+        let mut app = Self {
             solver,
             snapshot: None,
             new_snapshot: false,
@@ -147,7 +159,17 @@ impl ViewerApp {
             logic_start: None,
             outcome,
             persist,
-        })
+            teach,
+        };
+        if app.teach.is_some() {
+            app.solver
+                .queue(Command::Teach(TeachCommand::RecordSteps(true)));
+            // A scripted step-mode screenshot: N clicks on "Shoot once".
+            for _ in 0..scripted_steps {
+                app.solver.queue(Command::Step);
+            }
+        }
+        Ok(app)
     }
 
     pub(super) fn message(&mut self, error: bool, text: impl Into<String>) {
@@ -246,6 +268,7 @@ impl ViewerApp {
             Action::Remesh(size) => self.solver.queue(Command::Remesh(size)),
             Action::SetMethod(m) => self.solver.queue(Command::SetMethod(m)),
             Action::SetSolver(k) => self.solver.queue(Command::SetSolver(k)),
+            Action::Teach(t) => self.solver.queue(Command::Teach(t)),
             Action::OpenDialog => self.open_dialog(
                 ctx,
                 Request::new(Purpose::Open, ("Wavefront OBJ", "obj"), false),
@@ -461,6 +484,23 @@ impl eframe::App for ViewerApp {
             .show(ui, |ui| {
                 panels::side_panel(ui, &mut self.panel, self.snapshot.as_deref(), &mut actions);
             });
+        if let Some(teach) = self.teach.as_mut() {
+            egui::Panel::right("teach")
+                .default_size(400.0)
+                .resizable(true)
+                .show(ui, |ui| {
+                    super::teach::teach_panel(
+                        ui,
+                        teach,
+                        self.snapshot.as_deref(),
+                        self.panel.selection,
+                        &mut actions,
+                    );
+                });
+            if teach.view != TeachView::Hemicube && teach.sent.take().is_some() {
+                actions.push(Action::Teach(TeachCommand::Hemicube(None)));
+            }
+        }
         egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui, &mut actions));
         self.keys(&ctx, &mut actions);
         for a in actions {

@@ -27,6 +27,7 @@ mod panels;
 pub mod render;
 pub mod snapshot;
 pub mod solver_thread;
+pub mod teach;
 mod viewport;
 
 use std::sync::{Arc, OnceLock};
@@ -50,6 +51,8 @@ pub struct UiOptions {
     pub method: FormFactorMethod,
     /// The solver to start with (`--solver`).
     pub solver: crate::solver::SolverKind,
+    /// Teaching mode (`--teach`): the Teach panel opens on this view.
+    pub teach: Option<teach::TeachView>,
     /// The GPU hemicube, when `method` is `gpu-hemicube` (made on first use otherwise).
     pub raster: Option<std::sync::Arc<dyn crate::formfactor::hemicube::ItemBufferRaster>>,
     /// Window size in points.

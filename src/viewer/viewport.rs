@@ -7,7 +7,10 @@ use eframe::egui_wgpu;
 use super::app::ViewerApp;
 use super::panels::Action;
 use super::render::{FLAG_SELECTION, FLAG_SHOOTER, NO_PATCH, Overlays, Uniforms, ViewportCallback};
+use super::snapshot::Snapshot;
 use super::solver_thread::Command;
+use super::teach::TeachView;
+use std::sync::Arc;
 
 impl ViewerApp {
     pub(super) fn viewport(&mut self, ui: &mut egui::Ui, actions: &mut Vec<Action>) {
@@ -57,9 +60,30 @@ impl ViewerApp {
                 rect.height() as f64,
             );
             actions.push(Action::Select(snap.geometry.pick(o, d).map(|p| p.0)));
+            if let Some(teach) = self.teach.as_mut() {
+                teach.element = snap.geometry.pick_element(o, d);
+            }
         }
         let view = &self.panel.view;
-        let ambient = if view.ambient { snap.ambient } else { [0.0; 3] };
+        let mut ambient = if view.ambient { snap.ambient } else { [0.0; 3] };
+        // Step mode: what the last shot added, instead of the solution.
+        let received = self
+            .teach
+            .as_ref()
+            .filter(|t| t.show_received && t.view == TeachView::Step)
+            .and_then(|_| snap.teach_step.as_ref());
+        let snap = match received {
+            Some(d) => {
+                ambient = [0.0; 3];
+                Arc::new(Snapshot {
+                    // Its own sequence numbers, so the radiance buffer is uploaded again.
+                    seq: snap.seq | 1 << 62,
+                    radiance: d.received_vertices.clone(),
+                    ..(*snap).clone()
+                })
+            }
+            None => snap,
+        };
         let mut flags = 0;
         if view.highlight_shooter {
             flags |= FLAG_SHOOTER;

@@ -20,6 +20,7 @@
 //! at once so light shows up immediately.
 
 mod switch;
+mod teach;
 mod worker;
 
 use std::collections::VecDeque;
@@ -70,6 +71,8 @@ pub enum Command {
     /// with an [`Event::Error`] (the current solver goes on) when the new kind would refuse
     /// the problem ([`SolverKind::check`]).
     SetSolver(SolverKind),
+    /// Teaching mode's requests (`viewer::teach`).
+    Teach(crate::viewer::teach::TeachCommand),
     /// Load an OBJ file; on error the current scene stays.
     LoadPath(PathBuf),
     /// Replace the scene with one loaded elsewhere.

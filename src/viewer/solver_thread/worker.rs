@@ -14,6 +14,8 @@ use crate::scene::{LoadOptions, Material, MaterialId, Rgb, Scene};
 use crate::solver::{Problem, Solver, SolverConfig, SolverKind};
 
 use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, Stats, vertex_reflectance};
+use super::super::teach::hemicube::{HemicubeDetail, HemicubeRequest};
+use super::super::teach::step::{Before, StepDetail};
 use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
 
 pub(super) struct Worker {
@@ -29,7 +31,7 @@ pub(super) struct Worker {
     /// command changes something.
     exhausted: bool,
     loaded_materials: Arc<Vec<Material>>,
-    geometry: Option<Arc<Geometry>>,
+    pub(super) geometry: Option<Arc<Geometry>>,
     reflectance: Arc<Vec<[f32; 3]>>,
     reflectance_rev: u64,
     next_id: u64,
@@ -38,12 +40,13 @@ pub(super) struct Worker {
     /// per load.
     scene_camera: crate::scene::Camera,
     seq: u64,
-    playing: bool,
-    steps: usize,
+    pub(super) playing: bool,
+    /// Single steps still to take.
+    pub(super) steps: usize,
     stop_unshot: f64,
     max_shots: Option<usize>,
     pub(super) config: SolverConfig,
-    history: Arc<Vec<HistoryPoint>>,
+    pub(super) history: Arc<Vec<HistoryPoint>>,
     /// Solve time since the last (re)start, pauses excluded.
     elapsed: Duration,
     last_publish: Option<Instant>,
@@ -54,6 +57,14 @@ pub(super) struct Worker {
     edit_published: Option<Instant>,
     /// Set by [`Command::PanicOnNextShot`].
     panic_on_next_shot: Option<String>,
+    /// Teaching mode (`teach.rs`): record single steps, the last one recorded, the
+    /// hemicube asked for and the one computed.
+    pub(super) record_steps: bool,
+    pub(super) step_detail: Option<Arc<StepDetail>>,
+    pub(super) hemicube_request: Option<HemicubeRequest>,
+    pub(super) hemicube_detail: Option<Arc<HemicubeDetail>>,
+    /// What `hemicube_detail` was computed for: request, last shooter, mesh.
+    pub(super) hemicube_key: Option<(HemicubeRequest, Option<u32>, u64)>,
 }
 
 enum Flow {
@@ -99,6 +110,11 @@ impl Worker {
             edit_unpublished: false,
             edit_published: None,
             panic_on_next_shot: None,
+            record_steps: false,
+            step_detail: None,
+            hemicube_request: None,
+            hemicube_detail: None,
+            hemicube_key: None,
         }
     }
 
@@ -210,9 +226,22 @@ impl Worker {
         let Some(solver) = self.solver.as_mut() else {
             return;
         };
+        // Teaching mode records single steps (not a running solve: it costs a copy of the
+        // state and a row).
+        let before = (self.record_steps && !self.playing)
+            .then(|| Before::take(solver.as_ref()))
+            .flatten();
         let start = Instant::now();
         let stepped = solver.step(&self.cancel);
         self.elapsed += start.elapsed();
+        if stepped {
+            self.step_detail = match (before, &self.geometry) {
+                (Some(b), Some(g)) => {
+                    crate::viewer::teach::step::capture(b, solver.as_ref(), g).map(Arc::new)
+                }
+                _ => None,
+            };
+        }
         if !stepped {
             // Cancelled (a command is waiting: nothing changed), or nothing left to do.
             if !self.cancel.load(Ordering::Relaxed) {
@@ -284,6 +313,7 @@ impl Worker {
     }
 
     pub(super) fn restart_clock(&mut self) {
+        self.step_detail = None;
         self.elapsed = Duration::ZERO;
         self.history = Arc::new(Vec::new());
         self.dirty = true;
@@ -330,6 +360,7 @@ impl Worker {
             }
             Command::SetMethod(method) => self.set_method(method),
             Command::SetSolver(kind) => self.set_solver(kind),
+            Command::Teach(t) => self.teach(t),
             Command::LoadPath(path) => match Scene::load_obj(&path, &LoadOptions::default()) {
                 Ok(scene) => self.load(scene),
                 Err(e) => self.send_event(Event::Error(e.to_string())),
@@ -378,6 +409,7 @@ impl Worker {
     }
 
     fn publish(&mut self) {
+        self.refresh_hemicube();
         let (Some(solver), Some(geometry)) = (&self.solver, &self.geometry) else {
             return;
         };
@@ -442,6 +474,8 @@ impl Worker {
             two_sided: problem.scene.two_sided,
             method: problem.config.method,
             solver_kind: self.kind,
+            teach_step: self.step_detail.clone(),
+            teach_hemicube: self.hemicube_detail.clone(),
         };
         self.latest.publish(Arc::new(snapshot));
         self.last_publish = Some(now);
