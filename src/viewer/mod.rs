@@ -22,6 +22,7 @@ pub mod automation;
 pub mod camera;
 pub mod dialog;
 pub mod export;
+mod files;
 pub mod frame_log;
 mod panels;
 pub mod render;
