@@ -1,10 +1,11 @@
-//! Teaching mode end to end: `nusselt view --teach step|hemicube --screenshot` under Xvfb
-//! with lavapipe (as `viewer_e2e.rs`), checked against the plain view: the Teach panel is
-//! there (the right of the window differs from the plain view's), and the hemicube view
-//! draws the item buffer (both the red
-//! and the green wall appear on the right of the window, where the plain view shows only
-//! the green one). The numbers the views show are tested against the solver in
-//! `viewer::teach::{step, hemicube}`'s unit tests.
+//! Teaching mode end to end: `nusselt view --teach step|hemicube|matrix --screenshot`
+//! under Xvfb with lavapipe (as `viewer_e2e.rs`), checked against the plain view: the Teach
+//! panel is there (the right of the window differs from the plain view's); the hemicube
+//! view draws the item buffer (both the red and the green wall appear on the right of the
+//! window, where the plain view shows only the green one); the matrix view colours the
+//! scene by the shooter's column (heat-scale yellow, which the lit scene never is). The
+//! numbers the views show are tested against the solver in the unit tests of
+//! `viewer::teach::{step, hemicube, matrix}`.
 //!
 //! Skips with a printed reason where there is no Xvfb or no Vulkan driver, except in CI.
 
@@ -92,6 +93,18 @@ fn teach_screenshots_show_the_step_and_the_hemicube() {
         "hemicube",
         &with(&["--teach", "hemicube", "--after-shots", "1"]),
     );
+    let (matrix_window, matrix_viewport) = run_viewer_with(
+        &display,
+        dir.path(),
+        "matrix",
+        &with(&["--teach", "matrix", "--after-shots", "2"]),
+    );
+    let (_, plain_viewport) = run_viewer_with(
+        &display,
+        dir.path(),
+        "plain_viewport",
+        &with(&["--after-shots", "2"]),
+    );
     let (plain, step, cube) = (
         Picture::load(&plain),
         Picture::load(&step),
@@ -116,5 +129,31 @@ fn teach_screenshots_show_the_step_and_the_hemicube() {
     assert!(
         cr > 200 && cg > 200,
         "the item buffer does not show both walls: {cr} red, {cg} green"
+    );
+    // The matrix view: its panel, and the scene coloured by the shooter's column on the
+    // heat scale (saturated yellow where F_ij is large), which the lit scene never is.
+    let d_matrix = difference(&Picture::load(&matrix_window), &plain, 0.75, 1.0);
+    let yellow = |p: &Picture| {
+        let n = p
+            .rgb
+            .iter()
+            .filter(|[r, g, b]| *r > 0.85 && *g > 0.75 && *b < 0.5)
+            .count();
+        n as f64 / p.rgb.len() as f64
+    };
+    let (ym, yp) = (
+        yellow(&Picture::load(&matrix_viewport)),
+        yellow(&Picture::load(&plain_viewport)),
+    );
+    eprintln!(
+        "matrix: right quarter differs by {d_matrix:.3}; yellow viewport {ym:.3} vs plain {yp:.3}"
+    );
+    assert!(
+        d_matrix > 0.05,
+        "the matrix view looks like the plain view: {d_matrix}"
+    );
+    assert!(
+        ym > 0.03 && yp < 0.005,
+        "no column colours: {ym} vs plain {yp}"
     );
 }

@@ -73,8 +73,8 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
             ..Default::default()
         },
         kind: options.solver,
-        // Step mode starts paused: the class sees one shot per click.
-        play: !options.paused && options.teach != Some(TeachView::Step),
+        // Teaching starts paused: the class sees one shot per click.
+        play: !options.paused && options.teach.is_none(),
         max_shots,
         shot_threads: options.solver_threads,
         ..Default::default()
@@ -128,7 +128,7 @@ impl ViewerApp {
         let log_frames = options.automation.frame_log.is_some();
         let teach = options.teach.map(TeachState::new);
         let scripted_steps = match (options.teach, options.automation.screenshot.as_ref()) {
-            (Some(TeachView::Step), Some(plan)) => match plan.when {
+            (Some(_), Some(plan)) => match plan.when {
                 ScreenshotWhen::Shots(n) => n,
                 _ => 0,
             },
@@ -421,6 +421,10 @@ impl eframe::App for ViewerApp {
                 });
             if teach.view != TeachView::Hemicube && teach.sent.take().is_some() {
                 actions.push(Action::Teach(TeachCommand::Hemicube(None)));
+            }
+            if teach.view != TeachView::Matrix && teach.matrix_on {
+                teach.matrix_on = false;
+                actions.push(Action::Teach(TeachCommand::Matrix(false)));
             }
         }
         egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui, &mut actions));

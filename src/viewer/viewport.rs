@@ -66,19 +66,37 @@ impl ViewerApp {
         }
         let view = &self.panel.view;
         let mut ambient = if view.ambient { snap.ambient } else { [0.0; 3] };
-        // Step mode: what the last shot added, instead of the solution.
-        let received = self
-            .teach
-            .as_ref()
-            .filter(|t| t.show_received && t.view == TeachView::Step)
-            .and_then(|_| snap.teach_step.as_ref());
-        let snap = match received {
-            Some(d) => {
+        // Step mode: what the last shot added; matrix view: the shooter's column (colours
+        // as radiance, exposure 0); instead of the solution.
+        let replaced = self.teach.as_ref().and_then(|t| match t.view {
+            TeachView::Step if t.show_received => snap
+                .teach_step
+                .as_ref()
+                .map(|d| d.received_vertices.clone()),
+            TeachView::Matrix if t.show_column => snap
+                .teach_matrix
+                .as_ref()
+                .and_then(|d| d.column_colours.clone()),
+            _ => None,
+        });
+        // The column's colours are display colours: no exposure.
+        let exposure = if replaced.is_some()
+            && self
+                .teach
+                .as_ref()
+                .is_some_and(|t| t.view == TeachView::Matrix)
+        {
+            1.0
+        } else {
+            view.exposure()
+        };
+        let snap = match replaced {
+            Some(radiance) => {
                 ambient = [0.0; 3];
                 Arc::new(Snapshot {
                     // Its own sequence numbers, so the radiance buffer is uploaded again.
                     seq: snap.seq | 1 << 62,
-                    radiance: d.received_vertices.clone(),
+                    radiance,
                     ..(*snap).clone()
                 })
             }
@@ -96,7 +114,7 @@ impl ViewerApp {
             view_proj: camera
                 .view_proj(rect.aspect_ratio() as f64)
                 .to_cols_array_2d(),
-            ambient_exposure: [ambient[0], ambient[1], ambient[2], view.exposure()],
+            ambient_exposure: [ambient[0], ambient[1], ambient[2], exposure],
             ids: [shooter, self.panel.selection.unwrap_or(NO_PATCH), flags, 0],
             element_line_color: [0.0, 0.0, 0.0, 0.45],
             patch_line_color: [1.0, 1.0, 1.0, 0.8],

@@ -3,9 +3,11 @@
 
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
 
 use crate::viewer::teach::TeachCommand;
 use crate::viewer::teach::hemicube;
+use crate::viewer::teach::matrix::MatrixWork;
 use crate::viewer::teach::step::{Before, capture};
 
 use super::worker::Worker;
@@ -20,6 +22,14 @@ impl Worker {
                 }
             }
             TeachCommand::Back => self.back(),
+            TeachCommand::Matrix(on) => {
+                self.matrix_detail = None;
+                self.matrix_published = None;
+                self.matrix_work = None;
+                if on && let (Some(s), Some(g)) = (&self.solver, &self.geometry) {
+                    self.matrix_work = Some(MatrixWork::new(s.problem(), g.id));
+                }
+            }
             TeachCommand::Hemicube(request) => {
                 self.hemicube_request = request;
                 if request.is_none() {
@@ -60,6 +70,57 @@ impl Worker {
         }
         let steps = solver.steps();
         Arc::make_mut(&mut self.history).retain(|p| p.steps <= steps);
+    }
+
+    /// Whether the matrix view has rows left to compute (while nothing else runs).
+    pub(super) fn teach_work_pending(&self) -> bool {
+        match (&self.matrix_work, &self.solver) {
+            (Some(w), Some(s)) => !w.complete(s.problem()),
+            _ => false,
+        }
+    }
+
+    /// One row of the matrix view, when the solver has nothing to do.
+    pub(super) fn teach_work_once(&mut self) {
+        if self.wants_to_step() || !self.teach_work_pending() {
+            return;
+        }
+        let (Some(work), Some(solver)) = (self.matrix_work.as_mut(), &self.solver) else {
+            return;
+        };
+        let first = hemicube::teaching_patch(solver.problem(), None, solver.last_shooter());
+        if work.step(solver.problem(), first, &self.cancel) {
+            self.dirty = true;
+        }
+    }
+
+    /// Rebuilds what the matrix view shows, at most four times a second (a copy of the
+    /// matrix), or at once when the shooter changed or the matrix was completed; starts it
+    /// again on a new mesh.
+    pub(super) fn refresh_matrix(&mut self) {
+        let (Some(work), Some(solver), Some(geometry)) =
+            (self.matrix_work.as_mut(), &self.solver, &self.geometry)
+        else {
+            return;
+        };
+        if work.geometry_id != geometry.id {
+            *work = MatrixWork::new(solver.problem(), geometry.id);
+        }
+        let shooter = hemicube::teaching_patch(solver.problem(), None, solver.last_shooter());
+        let done = work.rows_done();
+        let due = match self.matrix_published {
+            None => true,
+            Some((at, rows, s)) => {
+                s != shooter
+                    || (rows != done
+                        && (at.elapsed() >= Duration::from_millis(250)
+                            || work.complete(solver.problem())))
+            }
+        };
+        if due {
+            self.matrix_detail = Some(Arc::new(work.detail(solver.problem(), geometry, shooter)));
+            self.matrix_published = Some((Instant::now(), done, shooter));
+        }
     }
 
     /// Recomputes the hemicube asked for when its shooter or the mesh changed.

@@ -15,13 +15,14 @@ use crate::solver::{Problem, Solver, SolverConfig, SolverKind};
 
 use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, Stats, vertex_reflectance};
 use super::super::teach::hemicube::{HemicubeDetail, HemicubeRequest};
+use super::super::teach::matrix::{MatrixDetail, MatrixWork};
 use super::super::teach::step::{Before, StepDetail};
 use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
 
 pub(super) struct Worker {
     rx: Receiver<Command>,
     events: SyncSender<Event>,
-    cancel: Arc<AtomicBool>,
+    pub(super) cancel: Arc<AtomicBool>,
     latest: Arc<Latest<Arc<Snapshot>>>,
     waker: Waker,
     pub(super) solver: Option<Box<dyn Solver>>,
@@ -51,7 +52,7 @@ pub(super) struct Worker {
     elapsed: Duration,
     last_publish: Option<Instant>,
     /// Something changed since the last publish.
-    dirty: bool,
+    pub(super) dirty: bool,
     /// A material edit was applied and not yet published.
     edit_unpublished: bool,
     edit_published: Option<Instant>,
@@ -65,6 +66,10 @@ pub(super) struct Worker {
     pub(super) hemicube_detail: Option<Arc<HemicubeDetail>>,
     /// What `hemicube_detail` was computed for: request, last shooter, mesh.
     pub(super) hemicube_key: Option<(HemicubeRequest, Option<u32>, u64)>,
+    /// The matrix view's rows, filled while idle, and what was last published of it.
+    pub(super) matrix_work: Option<MatrixWork>,
+    pub(super) matrix_detail: Option<Arc<MatrixDetail>>,
+    pub(super) matrix_published: Option<(Instant, usize, Option<u32>)>,
 }
 
 enum Flow {
@@ -115,6 +120,9 @@ impl Worker {
             hemicube_request: None,
             hemicube_detail: None,
             hemicube_key: None,
+            matrix_work: None,
+            matrix_detail: None,
+            matrix_published: None,
         }
     }
 
@@ -125,7 +133,7 @@ impl Worker {
             self.cancel.store(false, Ordering::Relaxed);
             // Drain what is queued; block only when there is nothing to shoot.
             loop {
-                let command = if self.wants_to_shoot() {
+                let command = if self.wants_to_shoot() || self.teach_work_pending() {
                     match self.rx.try_recv() {
                         Ok(c) => c,
                         Err(TryRecvError::Empty) => break,
@@ -156,6 +164,7 @@ impl Worker {
                 self.guarded(None, false, Self::publish);
             }
             self.guarded(None, false, Self::shoot_once);
+            self.guarded(None, false, Self::teach_work_once);
         }
     }
 
@@ -273,6 +282,10 @@ impl Worker {
         if point.steps <= 3 || self.due() || !self.wants_to_shoot() {
             self.publish();
         }
+    }
+
+    pub(super) fn wants_to_step(&self) -> bool {
+        self.wants_to_shoot()
     }
 
     pub(super) fn send_event(&self, event: Event) {
@@ -410,6 +423,7 @@ impl Worker {
 
     fn publish(&mut self) {
         self.refresh_hemicube();
+        self.refresh_matrix();
         let (Some(solver), Some(geometry)) = (&self.solver, &self.geometry) else {
             return;
         };
@@ -476,6 +490,7 @@ impl Worker {
             solver_kind: self.kind,
             teach_step: self.step_detail.clone(),
             teach_hemicube: self.hemicube_detail.clone(),
+            teach_matrix: self.matrix_detail.clone(),
         };
         self.latest.publish(Arc::new(snapshot));
         self.last_publish = Some(now);

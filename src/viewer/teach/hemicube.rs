@@ -59,11 +59,15 @@ pub struct HemicubeDetail {
     pub receiver: Option<ReceiverValue>,
 }
 
-/// The patch a hemicube goes on: `request.patch`, the last shooter, or the brightest
-/// emitter (power `Σ|E| A`).
-fn target(problem: &Problem, request: &HemicubeRequest, last: Option<PatchId>) -> Option<u32> {
+/// The patch a teaching view looks from: `explicit`, the last shooter, or the brightest
+/// emitter (power `Σ|E| A`: the first shooter).
+pub fn teaching_patch(
+    problem: &Problem,
+    explicit: Option<u32>,
+    last: Option<PatchId>,
+) -> Option<u32> {
     let n = problem.mesh.patches.len() as u32;
-    if let Some(p) = request.patch.filter(|p| *p < n) {
+    if let Some(p) = explicit.filter(|p| *p < n) {
         return Some(p);
     }
     if let Some(p) = last.filter(|p| p.0 < n) {
@@ -86,7 +90,7 @@ pub fn compute(
     request: HemicubeRequest,
     last: Option<PatchId>,
 ) -> Option<HemicubeDetail> {
-    let patch = target(problem, &request, last)?;
+    let patch = teaching_patch(problem, request.patch, last)?;
     let shooter = PatchId(patch);
     let res = request.res.clamp(2, MAX_RES);
     let table = DeltaTable::new(res);

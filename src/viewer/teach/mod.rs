@@ -8,13 +8,18 @@
 //! - [`hemicube`]: the hemicube at the shooter, its five faces unfolded, the item buffer and
 //!   the delta form factors, at a chosen resolution, with the hemicube value of a receiver
 //!   beside the exact one (the solver thread computes it with the core's CPU hemicube,
-//!   [`hemicube::HemicubeDetail`]; drawn by `hemicube_panel.rs`).
+//!   [`hemicube::HemicubeDetail`]; drawn by `hemicube_panel.rs`);
+//! - [`matrix`]: the scene coloured by the shooter's column `F_ij` (log scale, legend) and
+//!   the patch-level matrix as an image, filled a row at a time while the solver is idle,
+//!   with its sparsity and storage (drawn by `matrix_panel.rs`).
 //!
 //! The data is computed where the problem is, on the solver thread, on request
 //! ([`TeachCommand`]), and published with the snapshot like everything else.
 
 pub mod hemicube;
 mod hemicube_panel;
+pub mod matrix;
+mod matrix_panel;
 pub mod step;
 mod step_panel;
 
@@ -28,16 +33,18 @@ use super::snapshot::Snapshot;
 pub enum TeachView {
     Step,
     Hemicube,
+    Matrix,
 }
 
 impl TeachView {
     /// The views built so far, as `--teach` spells them.
-    pub const NAMES: &'static [&'static str] = &["step", "hemicube"];
+    pub const NAMES: &'static [&'static str] = &["step", "hemicube", "matrix"];
 
     pub fn parse(name: &str) -> Option<TeachView> {
         match name {
             "step" => Some(TeachView::Step),
             "hemicube" => Some(TeachView::Hemicube),
+            "matrix" => Some(TeachView::Matrix),
             _ => None,
         }
     }
@@ -46,6 +53,7 @@ impl TeachView {
         match self {
             TeachView::Step => "step",
             TeachView::Hemicube => "hemicube",
+            TeachView::Matrix => "matrix",
         }
     }
 }
@@ -61,6 +69,8 @@ pub enum TeachCommand {
     Back,
     /// Keep a hemicube view up to date (`None`: none).
     Hemicube(Option<hemicube::HemicubeRequest>),
+    /// Fill the form-factor matrix while idle and publish it (on), or drop it (off).
+    Matrix(bool),
 }
 
 /// The Teach panel's own state (UI side).
@@ -76,6 +86,11 @@ pub struct TeachState {
     /// The hemicube request last sent (sent again when it changes).
     pub sent: Option<hemicube::HemicubeRequest>,
     pub(super) hemicube_textures: hemicube_panel::Textures,
+    /// The matrix view asked the solver thread to fill the matrix.
+    pub matrix_on: bool,
+    /// Colour the scene by the shooter's column (matrix view).
+    pub show_column: bool,
+    pub(super) matrix_texture: matrix_panel::Texture,
 }
 
 impl TeachState {
@@ -87,6 +102,9 @@ impl TeachState {
             hemicube_res: 32,
             sent: None,
             hemicube_textures: Default::default(),
+            matrix_on: false,
+            show_column: true,
+            matrix_texture: Default::default(),
         }
     }
 }
@@ -115,5 +133,26 @@ pub fn teach_panel(
     egui::ScrollArea::vertical().show(ui, |ui| match state.view {
         TeachView::Step => step_panel::show(ui, state, s, actions),
         TeachView::Hemicube => hemicube_panel::show(ui, state, s, selection, actions),
+        TeachView::Matrix => matrix_panel::show(ui, state, s, actions),
     });
+}
+
+/// Whether the view on screen shows the state of `s` (for a scripted screenshot): the
+/// hemicube drawn at the last shooter, the matrix complete with the shooter's column.
+pub fn ready(state: Option<&TeachState>, s: &Snapshot) -> bool {
+    let Some(state) = state else {
+        return true;
+    };
+    let at_shooter = |p: u32| s.stats.last_shooter.is_none_or(|l| l == p);
+    match state.view {
+        TeachView::Step => s.stats.steps == 0 || s.teach_step.is_some(),
+        TeachView::Hemicube => s
+            .teach_hemicube
+            .as_ref()
+            .is_some_and(|d| at_shooter(d.patch)),
+        TeachView::Matrix => s
+            .teach_matrix
+            .as_ref()
+            .is_some_and(|d| d.rows_done == d.patches && d.shooter.is_some_and(at_shooter)),
+    }
 }
