@@ -151,12 +151,7 @@ impl MatrixWork {
         }
     }
 
-    fn column_of(
-        &self,
-        problem: &Problem,
-        geometry: &Geometry,
-        s: u32,
-    ) -> Option<Column> {
+    fn column_of(&self, problem: &Problem, geometry: &Geometry, s: u32) -> Option<Column> {
         let row = RowCache::default().row(problem, PatchId(s), &AtomicBool::new(false))?;
         // F_ij = (F_ij A_i / A_j) A_j / A_i per element.
         let area = problem.mesh.patches[s as usize].area;

@@ -43,6 +43,7 @@ pub(super) fn image(d: &MatrixDetail) -> egui::ColorImage {
         .iter()
         .filter(|f| f.is_finite())
         .fold(0.0f64, |m, &f| m.max(f64::from(f)));
+    let band = n / 150;
     let mut pixels = Vec::with_capacity(side * side);
     for y in 0..side {
         let p = y * n / side;
@@ -54,9 +55,9 @@ pub(super) fn image(d: &MatrixDetail) -> egui::ColorImage {
             } else {
                 colour(heat(log_scale(f64::from(f), max)))
             };
-            if d.shooter
-                .is_some_and(|s| s as usize == p || s as usize == q)
-            {
+            // A band a few pixels wide on screen, however many patches.
+            let near = |k: usize, s: u32| k.abs_diff(s as usize) <= band;
+            if d.shooter.is_some_and(|s| near(p, s) || near(q, s)) {
                 c = egui::Color32::from_rgb(c.r() / 2, 128 + c.g() / 2, 128 + c.b() / 2);
             }
             pixels.push(c);
