@@ -135,7 +135,22 @@ impl Worker {
         if self.hemicube_key == Some(key) {
             return;
         }
+        // While the solve runs the shooter changes every shot: redraw four times a second
+        // at most (a new request, from the slider, is answered at once; the publish that
+        // ends a solve is not throttled, as nothing is left to step then).
+        let same_request = self
+            .hemicube_key
+            .is_some_and(|k| k.0 == request && k.2 == geometry.id);
+        if self.wants_to_step()
+            && same_request
+            && self
+                .hemicube_drawn
+                .is_some_and(|t| t.elapsed() < Duration::from_millis(250))
+        {
+            return;
+        }
         self.hemicube_key = Some(key);
+        self.hemicube_drawn = Some(Instant::now());
         self.hemicube_detail = hemicube::compute(solver.problem(), request, last).map(Arc::new);
     }
 }

@@ -66,6 +66,7 @@ pub(super) struct Worker {
     pub(super) hemicube_detail: Option<Arc<HemicubeDetail>>,
     /// What `hemicube_detail` was computed for: request, last shooter, mesh.
     pub(super) hemicube_key: Option<(HemicubeRequest, Option<u32>, u64)>,
+    pub(super) hemicube_drawn: Option<Instant>,
     /// The matrix view's rows, filled while idle, and what was last published of it.
     pub(super) matrix_work: Option<MatrixWork>,
     pub(super) matrix_detail: Option<Arc<MatrixDetail>>,
@@ -120,6 +121,7 @@ impl Worker {
             hemicube_request: None,
             hemicube_detail: None,
             hemicube_key: None,
+            hemicube_drawn: None,
             matrix_work: None,
             matrix_detail: None,
             matrix_published: None,
