@@ -1,11 +1,12 @@
-//! Teaching mode end to end: `nusselt view --teach step|hemicube|matrix --screenshot`
+//! Teaching mode end to end: `nusselt view --teach step|hemicube|nusselt|matrix --screenshot`
 //! under Xvfb with lavapipe (as `viewer_e2e.rs`), checked against the plain view: the Teach
 //! panel is there (the right of the window differs from the plain view's); the hemicube
 //! view draws the item buffer (both the red and the green wall appear on the right of the
 //! window, where the plain view shows only the green one); the matrix view colours the
-//! scene by the shooter's column (heat-scale yellow, which the lit scene never is). The
+//! scene by the shooter's column (heat-scale yellow, which the lit scene never is); the
+//! Nusselt view draws the projection's cyan outline. The
 //! numbers the views show are tested against the solver in the unit tests of
-//! `viewer::teach::{step, hemicube, matrix}`.
+//! `viewer::teach::{step, hemicube, nusselt, matrix}`.
 //!
 //! Skips with a printed reason where there is no Xvfb or no Vulkan driver, except in CI.
 
@@ -54,7 +55,7 @@ fn red_and_green(p: &Picture, x0: f64, x1: f64) -> (usize, usize) {
 }
 
 #[test]
-fn teach_screenshots_show_the_step_and_the_hemicube() {
+fn teach_screenshots_show_each_view() {
     if !vulkan_driver_present() {
         skip("no Vulkan driver (install mesa-vulkan-drivers for lavapipe)");
         return;
@@ -98,6 +99,12 @@ fn teach_screenshots_show_the_step_and_the_hemicube() {
         dir.path(),
         "matrix",
         &with(&["--teach", "matrix", "--after-shots", "2"]),
+    );
+    let (nusselt, _) = run_viewer_with(
+        &display,
+        dir.path(),
+        "nusselt",
+        &with(&["--teach", "nusselt", "--after-shots", "1"]),
     );
     let (_, plain_viewport) = run_viewer_with(
         &display,
@@ -151,6 +158,23 @@ fn teach_screenshots_show_the_step_and_the_hemicube() {
     assert!(
         d_matrix > 0.05,
         "the matrix view looks like the plain view: {d_matrix}"
+    );
+    // The Nusselt view: the projection's cyan outline on the disk.
+    let cyan = |p: &Picture| {
+        let c0 = p.width * 3 / 4;
+        (0..p.height)
+            .flat_map(|y| (c0..p.width).map(move |x| (x, y)))
+            .filter(|&(x, y)| {
+                let [r, g, b] = p.rgb[y * p.width + x];
+                r < 0.3 && g > 0.7 && b > 0.8
+            })
+            .count()
+    };
+    let (cn, cp) = (cyan(&Picture::load(&nusselt)), cyan(&plain));
+    eprintln!("nusselt: {cn} cyan pixels on the right (plain {cp})");
+    assert!(
+        cn > 50 && cp == 0,
+        "no projection outline: {cn} vs plain {cp}"
     );
     assert!(
         ym > 0.03 && yp < 0.005,

@@ -422,6 +422,9 @@ impl eframe::App for ViewerApp {
             if teach.view != TeachView::Hemicube && teach.sent.take().is_some() {
                 actions.push(Action::Teach(TeachCommand::Hemicube(None)));
             }
+            if teach.view != TeachView::Nusselt && teach.nusselt_sent.take().is_some() {
+                actions.push(Action::Teach(TeachCommand::Nusselt(None)));
+            }
             if teach.view != TeachView::Matrix && teach.matrix_on {
                 teach.matrix_on = false;
                 actions.push(Action::Teach(TeachCommand::Matrix(false)));

@@ -225,6 +225,8 @@ pub struct Snapshot {
     pub teach_step: Option<Arc<crate::viewer::teach::step::StepDetail>>,
     /// Teaching mode: the hemicube asked for.
     pub teach_hemicube: Option<Arc<crate::viewer::teach::hemicube::HemicubeDetail>>,
+    /// Teaching mode: the Nusselt analogue asked for.
+    pub teach_nusselt: Option<Arc<crate::viewer::teach::nusselt::NusseltDetail>>,
     /// Teaching mode: the form-factor matrix so far and the shooter's column.
     pub teach_matrix: Option<Arc<crate::viewer::teach::matrix::MatrixDetail>>,
 }

@@ -30,6 +30,13 @@ impl Worker {
                     self.matrix_work = Some(MatrixWork::new(s.problem(), g.id));
                 }
             }
+            TeachCommand::Nusselt(request) => {
+                self.nusselt_request = request;
+                self.nusselt_key = None;
+                if request.is_none() {
+                    self.nusselt_detail = None;
+                }
+            }
             TeachCommand::Hemicube(request) => {
                 self.hemicube_request = request;
                 if request.is_none() {
@@ -121,6 +128,24 @@ impl Worker {
             self.matrix_detail = Some(Arc::new(work.detail(solver.problem(), geometry, shooter)));
             self.matrix_published = Some((Instant::now(), done, shooter));
         }
+    }
+
+    /// Recomputes the Nusselt view asked for when its shooter or the mesh changed (cheap:
+    /// a few thousand ray-polygon tests).
+    pub(super) fn refresh_nusselt(&mut self) {
+        let (Some(request), Some(solver), Some(geometry)) =
+            (self.nusselt_request, &self.solver, &self.geometry)
+        else {
+            return;
+        };
+        let last = solver.last_shooter();
+        let key = (request, last.map(|p| p.0), geometry.id);
+        if self.nusselt_key == Some(key) {
+            return;
+        }
+        self.nusselt_key = Some(key);
+        self.nusselt_detail =
+            crate::viewer::teach::nusselt::compute(solver.problem(), request, last).map(Arc::new);
     }
 
     /// Recomputes the hemicube asked for when its shooter or the mesh changed.

@@ -16,6 +16,7 @@ use crate::solver::{Problem, Solver, SolverConfig, SolverKind};
 use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, Stats, vertex_reflectance};
 use super::super::teach::hemicube::{HemicubeDetail, HemicubeRequest};
 use super::super::teach::matrix::{MatrixDetail, MatrixWork};
+use super::super::teach::nusselt::{NusseltDetail, NusseltRequest};
 use super::super::teach::step::{Before, StepDetail};
 use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
 
@@ -67,6 +68,10 @@ pub(super) struct Worker {
     /// What `hemicube_detail` was computed for: request, last shooter, mesh.
     pub(super) hemicube_key: Option<(HemicubeRequest, Option<u32>, u64)>,
     pub(super) hemicube_drawn: Option<Instant>,
+    /// The Nusselt view asked for, the one computed, and for what (request, shooter, mesh).
+    pub(super) nusselt_request: Option<NusseltRequest>,
+    pub(super) nusselt_detail: Option<Arc<NusseltDetail>>,
+    pub(super) nusselt_key: Option<(NusseltRequest, Option<u32>, u64)>,
     /// The matrix view's rows, filled while idle, and what was last published of it.
     pub(super) matrix_work: Option<MatrixWork>,
     pub(super) matrix_detail: Option<Arc<MatrixDetail>>,
@@ -122,6 +127,9 @@ impl Worker {
             hemicube_detail: None,
             hemicube_key: None,
             hemicube_drawn: None,
+            nusselt_request: None,
+            nusselt_detail: None,
+            nusselt_key: None,
             matrix_work: None,
             matrix_detail: None,
             matrix_published: None,
@@ -426,6 +434,7 @@ impl Worker {
     fn publish(&mut self) {
         self.refresh_hemicube();
         self.refresh_matrix();
+        self.refresh_nusselt();
         let (Some(solver), Some(geometry)) = (&self.solver, &self.geometry) else {
             return;
         };
@@ -493,6 +502,7 @@ impl Worker {
             teach_step: self.step_detail.clone(),
             teach_hemicube: self.hemicube_detail.clone(),
             teach_matrix: self.matrix_detail.clone(),
+            teach_nusselt: self.nusselt_detail.clone(),
         };
         self.latest.publish(Arc::new(snapshot));
         self.last_publish = Some(now);

@@ -9,6 +9,9 @@
 //!   the delta form factors, at a chosen resolution, with the hemicube value of a receiver
 //!   beside the exact one (the solver thread computes it with the core's CPU hemicube,
 //!   [`hemicube::HemicubeDetail`]; drawn by `hemicube_panel.rs`);
+//! - [`nusselt`]: the Nusselt analogue: a patch projected onto the hemisphere and the base
+//!   disk around the shooter's centre, the covered fraction beside the exact form factor,
+//!   and scaled copies with the same projection (drawn by `nusselt_panel.rs`);
 //! - [`matrix`]: the scene coloured by the shooter's column `F_ij` (log scale, legend) and
 //!   the patch-level matrix as an image, filled a row at a time while the solver is idle,
 //!   with its sparsity and storage (drawn by `matrix_panel.rs`).
@@ -20,6 +23,8 @@ pub mod hemicube;
 mod hemicube_panel;
 pub mod matrix;
 mod matrix_panel;
+pub mod nusselt;
+mod nusselt_panel;
 pub mod step;
 mod step_panel;
 
@@ -33,17 +38,19 @@ use super::snapshot::Snapshot;
 pub enum TeachView {
     Step,
     Hemicube,
+    Nusselt,
     Matrix,
 }
 
 impl TeachView {
     /// The views built so far, as `--teach` spells them.
-    pub const NAMES: &'static [&'static str] = &["step", "hemicube", "matrix"];
+    pub const NAMES: &'static [&'static str] = &["step", "hemicube", "nusselt", "matrix"];
 
     pub fn parse(name: &str) -> Option<TeachView> {
         match name {
             "step" => Some(TeachView::Step),
             "hemicube" => Some(TeachView::Hemicube),
+            "nusselt" => Some(TeachView::Nusselt),
             "matrix" => Some(TeachView::Matrix),
             _ => None,
         }
@@ -53,6 +60,7 @@ impl TeachView {
         match self {
             TeachView::Step => "step",
             TeachView::Hemicube => "hemicube",
+            TeachView::Nusselt => "nusselt",
             TeachView::Matrix => "matrix",
         }
     }
@@ -69,6 +77,8 @@ pub enum TeachCommand {
     Back,
     /// Keep a hemicube view up to date (`None`: none).
     Hemicube(Option<hemicube::HemicubeRequest>),
+    /// Keep a Nusselt-analogue view up to date (`None`: none).
+    Nusselt(Option<nusselt::NusseltRequest>),
     /// Fill the form-factor matrix while idle and publish it (on), or drop it (off).
     Matrix(bool),
 }
@@ -86,6 +96,8 @@ pub struct TeachState {
     /// The hemicube request last sent (sent again when it changes).
     pub sent: Option<hemicube::HemicubeRequest>,
     pub(super) hemicube_textures: hemicube_panel::Textures,
+    /// The Nusselt request last sent.
+    pub nusselt_sent: Option<nusselt::NusseltRequest>,
     /// The matrix view asked the solver thread to fill the matrix.
     pub matrix_on: bool,
     /// Colour the scene by the shooter's column (matrix view).
@@ -102,6 +114,7 @@ impl TeachState {
             hemicube_res: 32,
             sent: None,
             hemicube_textures: Default::default(),
+            nusselt_sent: None,
             matrix_on: false,
             show_column: true,
             matrix_texture: Default::default(),
@@ -133,6 +146,7 @@ pub fn teach_panel(
     egui::ScrollArea::vertical().show(ui, |ui| match state.view {
         TeachView::Step => step_panel::show(ui, state, s, actions),
         TeachView::Hemicube => hemicube_panel::show(ui, state, s, selection, actions),
+        TeachView::Nusselt => nusselt_panel::show(ui, state, s, selection, actions),
         TeachView::Matrix => matrix_panel::show(ui, state, s, actions),
     });
 }
@@ -150,6 +164,7 @@ pub fn ready(state: Option<&TeachState>, s: &Snapshot) -> bool {
             .teach_hemicube
             .as_ref()
             .is_some_and(|d| at_shooter(d.patch)),
+        TeachView::Nusselt => s.teach_nusselt.as_ref().is_some_and(|d| at_shooter(d.from)),
         TeachView::Matrix => s
             .teach_matrix
             .as_ref()
