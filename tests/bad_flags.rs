@@ -379,4 +379,5 @@ fn view_solver_flags_are_checked() {
         &with(&["--teach", "lecture"]),
         "unknown --teach 'lecture' (the views built so far: step, hemicube",
     );
+    refused(&with(&["--projector"]), "--teach");
 }

@@ -26,6 +26,9 @@ pub struct ViewCmdArgs {
     /// --after-shots N it takes N single steps.
     #[arg(long)]
     pub teach: Option<String>,
+    /// With --teach: projector mode (large text, light theme; a toggle in the Teach panel).
+    #[arg(long, requires = "teach")]
+    pub projector: bool,
     /// Form-factor method (contour, exact, hemicube, raycast, montecarlo, hybrid, gpu-hemicube).
     #[arg(long = "formfactor", alias = "method")]
     pub method: Option<String>,
@@ -243,6 +246,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
             method,
             solver,
             teach,
+            projector: args.projector,
             raster: super::render::raster_for(method)?,
             window,
             wireframe: args.wireframe,

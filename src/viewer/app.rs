@@ -126,7 +126,10 @@ impl ViewerApp {
             show_plot: true,
         };
         let log_frames = options.automation.frame_log.is_some();
-        let teach = options.teach.map(TeachState::new);
+        let teach = options.teach.map(|v| TeachState {
+            projector: options.projector,
+            ..TeachState::new(v)
+        });
         let scripted_steps = match (options.teach, options.automation.screenshot.as_ref()) {
             (Some(_), Some(plan)) => match plan.when {
                 ScreenshotWhen::Shots(n) => n,
@@ -421,6 +424,16 @@ impl eframe::App for ViewerApp {
                 });
             if teach.view != TeachView::Hemicube && teach.sent.take().is_some() {
                 actions.push(Action::Teach(TeachCommand::Hemicube(None)));
+            }
+            // Projector mode: text half as large again, light theme.
+            if teach.projector != teach.projector_applied {
+                teach.projector_applied = teach.projector;
+                ctx.set_zoom_factor(if teach.projector { 1.5 } else { 1.0 });
+                ctx.set_theme(if teach.projector {
+                    egui::Theme::Light
+                } else {
+                    egui::Theme::Dark
+                });
             }
             if teach.view != TeachView::Nusselt && teach.nusselt_sent.take().is_some() {
                 actions.push(Action::Teach(TeachCommand::Nusselt(None)));

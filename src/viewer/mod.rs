@@ -54,6 +54,8 @@ pub struct UiOptions {
     pub solver: crate::solver::SolverKind,
     /// Teaching mode (`--teach`): the Teach panel opens on this view.
     pub teach: Option<teach::TeachView>,
+    /// Teaching mode starts in projector mode (large text, light theme).
+    pub projector: bool,
     /// The GPU hemicube, when `method` is `gpu-hemicube` (made on first use otherwise).
     pub raster: Option<std::sync::Arc<dyn crate::formfactor::hemicube::ItemBufferRaster>>,
     /// Window size in points.

@@ -115,7 +115,7 @@ pub(super) fn show(
         actions.push(Action::Teach(TeachCommand::Hemicube(Some(request))));
     }
     let Some(d) = s.teach_hemicube.clone() else {
-        ui.label("Drawing the hemicube…");
+        ui.label("Drawing the hemicube… (it sits at the shooter: the scene needs a light)");
         return;
     };
     let t = &mut state.hemicube_textures;

@@ -96,6 +96,11 @@ pub struct TeachState {
     /// The hemicube request last sent (sent again when it changes).
     pub sent: Option<hemicube::HemicubeRequest>,
     pub(super) hemicube_textures: hemicube_panel::Textures,
+    /// Projector mode: large text and a light theme (applied by the app).
+    pub projector: bool,
+    /// The projector setting last applied (the zoom is left alone otherwise, so that the
+    /// user's own zoom keys keep working).
+    pub projector_applied: bool,
     /// The Nusselt request last sent.
     pub nusselt_sent: Option<nusselt::NusseltRequest>,
     /// The matrix view asked the solver thread to fill the matrix.
@@ -114,6 +119,8 @@ impl TeachState {
             hemicube_res: 32,
             sent: None,
             hemicube_textures: Default::default(),
+            projector: false,
+            projector_applied: false,
             nusselt_sent: None,
             matrix_on: false,
             show_column: true,
@@ -130,7 +137,11 @@ pub fn teach_panel(
     selection: Option<u32>,
     actions: &mut Vec<Action>,
 ) {
-    ui.heading("Teach");
+    ui.horizontal(|ui| {
+        ui.heading("Teach");
+        ui.checkbox(&mut state.projector, "projector")
+            .on_hover_text("large text and a light theme, for a projected lecture");
+    });
     ui.horizontal(|ui| {
         for name in TeachView::NAMES {
             if let Some(v) = TeachView::parse(name) {

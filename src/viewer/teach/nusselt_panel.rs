@@ -25,7 +25,7 @@ pub(super) fn show(
         actions.push(Action::Teach(TeachCommand::Nusselt(Some(request))));
     }
     let Some(d) = s.teach_nusselt.clone() else {
-        ui.label("Projecting…");
+        ui.label("Projecting… (from the shooter: the scene needs a light)");
         return;
     };
     ui.strong(format!(
