@@ -1,6 +1,7 @@
 //! Teaching mode over the solver thread, without a window: recorded single steps, one step
 //! back (the replay gives exactly the earlier image and numbers), the hemicube kept at the
-//! shooter, and the form-factor matrix filled while the solver is idle.
+//! shooter, and the form-factor matrix filled while the solver is idle (and refused, with
+//! an error event, on a mesh too large for it).
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -126,6 +127,45 @@ fn steps_back_hemicube_and_matrix_over_the_thread() {
     assert_eq!(
         full.stats.steps, 3,
         "filling the matrix must not step the solver"
+    );
+    assert!(h.shutdown(Duration::from_secs(30)));
+}
+
+/// The matrix view refuses a mesh whose patch matrix would be too large to copy to the UI
+/// (an error event saying why), and the solver goes on.
+#[test]
+fn the_matrix_view_refuses_too_many_patches() {
+    let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+    let mut h = SolverHandle::spawn(
+        scene,
+        ThreadConfig {
+            solver: SolverConfig {
+                element_size: Some(20.0),
+                patch_size: Some(20.0),
+                ..Default::default()
+            },
+            play: false,
+            ..Default::default()
+        },
+        Box::new(|| {}),
+    )
+    .expect("spawn");
+    let deadline = Instant::now() + Duration::from_secs(240);
+    let first = first_snapshot(&h, deadline, |_| true);
+    assert!(first.geometry.patches > nusselt::viewer::teach::matrix::MAX_PATCHES);
+    send(&h, Command::Teach(TeachCommand::Matrix(true)), deadline);
+    send(&h, Command::Step, deadline);
+    let after = first_snapshot(&h, deadline, |s| s.stats.steps == 1);
+    assert!(after.teach_matrix.is_none());
+    let errors: Vec<_> = std::iter::from_fn(|| h.try_event())
+        .filter_map(|e| match e {
+            nusselt::viewer::solver_thread::Event::Error(m) => Some(m),
+            _ => None,
+        })
+        .collect();
+    assert!(
+        errors.iter().any(|m| m.contains("at most 2048 patches")),
+        "{errors:?}"
     );
     assert!(h.shutdown(Duration::from_secs(30)));
 }

@@ -10,6 +10,7 @@ use crate::viewer::teach::hemicube;
 use crate::viewer::teach::matrix::MatrixWork;
 use crate::viewer::teach::step::{Before, capture};
 
+use super::Event;
 use super::worker::Worker;
 
 impl Worker {
@@ -27,7 +28,10 @@ impl Worker {
                 self.matrix_published = None;
                 self.matrix_work = None;
                 if on && let (Some(s), Some(g)) = (&self.solver, &self.geometry) {
-                    self.matrix_work = Some(MatrixWork::new(s.problem(), g.id));
+                    match MatrixWork::new(s.problem(), g.id) {
+                        Ok(w) => self.matrix_work = Some(w),
+                        Err(e) => self.send_event(Event::Error(e)),
+                    }
                 }
             }
             TeachCommand::Nusselt(request) => {
@@ -111,7 +115,15 @@ impl Worker {
             return;
         };
         if work.geometry_id != geometry.id {
-            *work = MatrixWork::new(solver.problem(), geometry.id);
+            match MatrixWork::new(solver.problem(), geometry.id) {
+                Ok(w) => *work = w,
+                Err(e) => {
+                    self.matrix_work = None;
+                    self.matrix_detail = None;
+                    self.send_event(Event::Error(e));
+                    return;
+                }
+            }
         }
         let shooter = hemicube::teaching_patch(solver.problem(), None, solver.last_shooter());
         let done = work.rows_done();

@@ -11,6 +11,10 @@ use crate::solver::{Problem, RowCache};
 
 use super::super::snapshot::Geometry;
 
+/// Most patches the matrix view takes (the matrix is `patches²` floats, copied to the UI a
+/// few times a second: 2,048 patches are 16 MB).
+pub const MAX_PATCHES: usize = 2048;
+
 /// The smallest form factor the log colour scale shows (darker is below it).
 pub const LOG_FLOOR: f64 = 1e-6;
 
@@ -77,16 +81,23 @@ pub fn log_scale(f: f64, max: f64) -> f64 {
 }
 
 impl MatrixWork {
-    pub fn new(problem: &Problem, geometry_id: u64) -> MatrixWork {
+    /// Refused (with the message for the user) past [`MAX_PATCHES`].
+    pub fn new(problem: &Problem, geometry_id: u64) -> Result<MatrixWork, String> {
         let n = problem.mesh.patches.len();
-        MatrixWork {
+        if n > MAX_PATCHES {
+            return Err(format!(
+                "the matrix view shows at most {MAX_PATCHES} patches, this mesh has {n}: \
+                 use a larger element size"
+            ));
+        }
+        Ok(MatrixWork {
             geometry_id,
             column: None,
             patch_f: vec![f32::NAN; n * n],
             done: vec![false; n],
             rows_done: 0,
             nonzero: 0,
-        }
+        })
     }
 
     pub fn rows_done(&self) -> usize {
@@ -195,7 +206,7 @@ mod tests {
         };
         let problem = Problem::new(scene, config).expect("problem");
         let n = problem.mesh.patches.len();
-        let mut work = MatrixWork::new(&problem, 1);
+        let mut work = MatrixWork::new(&problem, 1).expect("small enough");
         let never = AtomicBool::new(false);
         assert!(work.step(&problem, Some(3), &never));
         assert!(work.patch_f[3 * n..4 * n].iter().all(|f| f.is_finite()));

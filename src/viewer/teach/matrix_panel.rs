@@ -85,7 +85,9 @@ pub(super) fn show(
         "colour the scene by F_ij from the shooter (log scale)",
     );
     let Some(d) = s.teach_matrix.clone() else {
-        ui.label("Computing the first row…");
+        ui.label(
+            "Computing the first row… (a mesh too large for the view is refused in the messages)",
+        );
         return;
     };
     if let Some(shooter) = d.shooter {

@@ -54,7 +54,7 @@ pub struct NusseltDetail {
 /// Where the ray from `o` along `d` meets convex polygon `poly` (in front of `o`).
 fn hits(o: DVec3, d: DVec3, poly: &[DVec3], normal: DVec3) -> bool {
     let denom = d.dot(normal);
-    if denom.abs() < 1e-300 {
+    if poly.is_empty() || denom.abs() < 1e-300 {
         return false;
     }
     let t = (poly[0] - o).dot(normal) / denom;
