@@ -59,6 +59,14 @@ impl Worker {
         let Some(solver) = self.solver.as_mut() else {
             return;
         };
+        if solver.unshot().is_none() {
+            // A gathering solver keeps its matrix on reset, so replaying its steps (rows,
+            // then sweeps) would not give the earlier state.
+            self.send_event(Event::Error(
+                "Back replays shots: it needs the shooting solver".into(),
+            ));
+            return;
+        }
         let target = solver.steps().saturating_sub(1);
         self.playing = false;
         self.steps = 0;

@@ -28,7 +28,12 @@ pub(super) fn show(
         {
             actions.push(Action::Solver(Command::Step));
         }
-        let back = ui.add_enabled(s.stats.steps > 0, egui::Button::new("Back"));
+        // Back replays shots; a gathering solver's steps (rows, then sweeps) do not replay
+        // from a reset that keeps its matrix.
+        let back = ui.add_enabled(
+            s.stats.steps > 0 && s.stats.solver == "shooting",
+            egui::Button::new("Back"),
+        );
         if back
             .on_hover_text("one shot back (replayed from dark with the stored rows)")
             .clicked()
