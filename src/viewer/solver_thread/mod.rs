@@ -19,6 +19,7 @@
 //! pass over the mesh; the first state (emitters only) and the first shots are published
 //! at once so light shows up immediately.
 
+mod publish;
 mod switch;
 mod teach;
 mod worker;

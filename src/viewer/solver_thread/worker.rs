@@ -9,11 +9,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TryRecvError, TrySendError};
 use std::time::{Duration, Instant};
 
-use crate::mesh::PatchId;
 use crate::scene::{LoadOptions, Material, MaterialId, Rgb, Scene};
 use crate::solver::{Problem, Solver, SolverConfig, SolverKind};
 
-use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, Stats, vertex_reflectance};
+use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, vertex_reflectance};
 use super::super::teach::hemicube::{HemicubeDetail, HemicubeRequest};
 use super::super::teach::matrix::{MatrixDetail, MatrixWork};
 use super::super::teach::nusselt::{NusseltDetail, NusseltRequest};
@@ -21,44 +20,44 @@ use super::super::teach::step::{Before, StepDetail};
 use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
 
 pub(super) struct Worker {
-    rx: Receiver<Command>,
-    events: SyncSender<Event>,
+    pub(super) rx: Receiver<Command>,
+    pub(super) events: SyncSender<Event>,
     pub(super) cancel: Arc<AtomicBool>,
-    latest: Arc<Latest<Arc<Snapshot>>>,
-    waker: Waker,
+    pub(super) latest: Arc<Latest<Arc<Snapshot>>>,
+    pub(super) waker: Waker,
     pub(super) solver: Option<Box<dyn Solver>>,
     /// The kind of `solver` (and of the next one built, on a load).
     pub(super) kind: SolverKind,
     /// The solver's last step found nothing to do (not cancelled): stepping stops until a
     /// command changes something.
-    exhausted: bool,
-    loaded_materials: Arc<Vec<Material>>,
+    pub(super) exhausted: bool,
+    pub(super) loaded_materials: Arc<Vec<Material>>,
     pub(super) geometry: Option<Arc<Geometry>>,
-    reflectance: Arc<Vec<[f32; 3]>>,
-    reflectance_rev: u64,
-    next_id: u64,
-    scene_rev: u64,
+    pub(super) reflectance: Arc<Vec<[f32; 3]>>,
+    pub(super) reflectance_rev: u64,
+    pub(super) next_id: u64,
+    pub(super) scene_rev: u64,
     /// The first view of the current scene (`render::view::default_camera`), chosen once
     /// per load.
-    scene_camera: crate::scene::Camera,
-    seq: u64,
+    pub(super) scene_camera: crate::scene::Camera,
+    pub(super) seq: u64,
     pub(super) playing: bool,
     /// Single steps still to take.
     pub(super) steps: usize,
-    stop_unshot: f64,
-    max_shots: Option<usize>,
+    pub(super) stop_unshot: f64,
+    pub(super) max_shots: Option<usize>,
     pub(super) config: SolverConfig,
     pub(super) history: Arc<Vec<HistoryPoint>>,
     /// Solve time since the last (re)start, pauses excluded.
-    elapsed: Duration,
-    last_publish: Option<Instant>,
+    pub(super) elapsed: Duration,
+    pub(super) last_publish: Option<Instant>,
     /// Something changed since the last publish.
     pub(super) dirty: bool,
     /// A material edit was applied and not yet published.
-    edit_unpublished: bool,
-    edit_published: Option<Instant>,
+    pub(super) edit_unpublished: bool,
+    pub(super) edit_published: Option<Instant>,
     /// Set by [`Command::PanicOnNextShot`].
-    panic_on_next_shot: Option<String>,
+    pub(super) panic_on_next_shot: Option<String>,
     /// Teaching mode (`teach.rs`): record single steps, the last one recorded, the
     /// hemicube asked for and the one computed.
     pub(super) record_steps: bool,
@@ -429,84 +428,5 @@ impl Worker {
             }
             Err(e) => self.send_event(Event::Error(format!("edit: {e}"))),
         }
-    }
-
-    fn publish(&mut self) {
-        self.refresh_hemicube();
-        self.refresh_matrix();
-        self.refresh_nusselt();
-        let (Some(solver), Some(geometry)) = (&self.solver, &self.geometry) else {
-            return;
-        };
-        let problem = solver.problem();
-        let per_vertex = problem.mesh.vertex_values(&solver.element_radiance(false));
-        let radiance = geometry.expand(&per_vertex);
-        debug_assert!(radiance.iter().flatten().all(|x| x.is_finite()));
-        let ambient = solver.ambient();
-        debug_assert!(ambient.is_finite());
-        let steps_per_second = {
-            let h = &self.history;
-            match (
-                h.last(),
-                h.iter()
-                    .rev()
-                    .find(|p| h.last().is_some_and(|l| l.seconds - p.seconds >= 1.0)),
-            ) {
-                (Some(l), Some(p)) => (l.steps - p.steps) as f64 / (l.seconds - p.seconds),
-                (Some(l), None) if l.seconds > 0.0 => l.steps as f64 / l.seconds,
-                _ => 0.0,
-            }
-        };
-        let residual = solver.residual();
-        let stats = Stats {
-            solver: solver.name(),
-            report: solver.report(),
-            matrix_bytes: solver.matrix_bytes(),
-            elements: geometry.elements,
-            patches: geometry.patches,
-            steps: solver.steps(),
-            steps_per_second,
-            residual,
-            elapsed_seconds: self.elapsed.as_secs_f64(),
-            playing: self.playing,
-            converged: residual <= self.stop_unshot || self.exhausted,
-            limit_reached: self.max_shots.is_some_and(|m| solver.steps() >= m),
-            last_shooter: solver.last_shooter().map(|p: PatchId| p.0),
-        };
-        self.seq += 1;
-        let now = Instant::now();
-        if self.edit_unpublished {
-            self.edit_unpublished = false;
-            self.edit_published = Some(now);
-        }
-        let snapshot = Snapshot {
-            seq: self.seq,
-            published: now,
-            edit_published: self.edit_published,
-            geometry: geometry.clone(),
-            radiance: Arc::new(radiance),
-            reflectance: self.reflectance.clone(),
-            reflectance_rev: self.reflectance_rev,
-            ambient: ambient.as_vec3().to_array(),
-            stats,
-            materials: Arc::new(problem.scene.materials.clone()),
-            loaded_materials: self.loaded_materials.clone(),
-            history: self.history.clone(),
-            scene_name: problem.scene.name.clone(),
-            scene_source: problem.scene.source.clone(),
-            scene_rev: self.scene_rev,
-            scene_camera: self.scene_camera,
-            two_sided: problem.scene.two_sided,
-            method: problem.config.method,
-            solver_kind: self.kind,
-            teach_step: self.step_detail.clone(),
-            teach_hemicube: self.hemicube_detail.clone(),
-            teach_matrix: self.matrix_detail.clone(),
-            teach_nusselt: self.nusselt_detail.clone(),
-        };
-        self.latest.publish(Arc::new(snapshot));
-        self.last_publish = Some(now);
-        self.dirty = false;
-        (self.waker)();
     }
 }
