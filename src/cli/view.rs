@@ -9,6 +9,7 @@ use clap::Args;
 use super::SceneArgs;
 use crate::formfactor::FormFactorMethod;
 use crate::solver::SolverKind;
+use crate::viewer::teach::TeachView;
 use crate::viewer::{
     Automation, EditSpec, ScreenshotPlan, ScreenshotWhen, UiOptions, ViewerOptions,
 };
@@ -20,6 +21,14 @@ pub struct ViewCmdArgs {
     /// Element edge length (scene units); default 1/80 of the scene's diagonal.
     #[arg(long)]
     pub element_size: Option<f64>,
+    /// Teaching mode: open the Teach panel on this view (step: one shot per click with its
+    /// numbers; hemicube: the hemicube at the shooter). Step mode starts paused; with
+    /// --after-shots N it takes N single steps.
+    #[arg(long)]
+    pub teach: Option<String>,
+    /// With --teach: projector mode (large text, light theme; a toggle in the Teach panel).
+    #[arg(long, requires = "teach")]
+    pub projector: bool,
     /// Form-factor method (contour, exact, hemicube, raycast, montecarlo, hybrid, gpu-hemicube).
     #[arg(long = "formfactor", alias = "method")]
     pub method: Option<String>,
@@ -166,6 +175,15 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
         None => FormFactorMethod::Contour,
     };
     let solver = parse_solver(&args.solver, args.omega)?;
+    let teach = match &args.teach {
+        Some(name) => Some(TeachView::parse(name).with_context(|| {
+            format!(
+                "unknown --teach '{name}' (the views built so far: {})",
+                TeachView::NAMES.join(", ")
+            )
+        })?),
+        None => None,
+    };
     let window = parse_window(&args.window)?;
     let edits = args
         .edit
@@ -227,6 +245,8 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
             element_size: args.element_size,
             method,
             solver,
+            teach,
+            projector: args.projector,
             raster: super::render::raster_for(method)?,
             window,
             wireframe: args.wireframe,

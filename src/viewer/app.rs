@@ -15,13 +15,14 @@ use crate::solver::SolverConfig;
 use super::UiOptions;
 use super::automation::{Automation, ScreenshotWhen, ShotState};
 use super::camera::OrbitCamera;
-use super::dialog::{Dialogs, Outcome, Purpose, Request};
+use super::dialog::{Dialogs, Purpose, Request};
 use super::export;
 use super::frame_log::{EditLatency, FrameLog, FrameRow};
 use super::panels::{self, Action, PanelState, ViewSettings};
 use super::render::ViewportResources;
 use super::snapshot::Snapshot;
 use super::solver_thread::{Command, Event, Latest, SolverHandle, ThreadConfig};
+use super::teach::{TeachCommand, TeachState, TeachView};
 
 const RECENT_KEY: &str = "nusselt.recent";
 const MAX_RECENT: usize = 10;
@@ -39,10 +40,10 @@ pub struct ViewerApp {
     pub(super) shot_state: ShotState,
     pub(super) screenshot_image: Arc<Latest<Arc<egui::ColorImage>>>,
     /// Viewport PNG export waiting for its screenshot.
-    png_export: Option<(PathBuf, egui::Rect)>,
-    png_image: Arc<Latest<Arc<egui::ColorImage>>>,
+    pub(super) png_export: Option<(PathBuf, egui::Rect)>,
+    pub(super) png_image: Arc<Latest<Arc<egui::ColorImage>>>,
     /// The file dialog in progress (runs on its own thread).
-    dialogs: Dialogs,
+    pub(super) dialogs: Dialogs,
     pub(super) edits_sent: bool,
     pub(super) edit_latency: EditLatency,
     frame_log: FrameLog,
@@ -54,6 +55,8 @@ pub struct ViewerApp {
     /// Set when a scripted run fails (read by `viewer::run` after the window closes).
     outcome: Arc<Mutex<Option<String>>>,
     persist: bool,
+    /// Teaching mode's panel (`--teach`).
+    pub(super) teach: Option<TeachState>,
 }
 
 /// The solver thread's settings for these options.
@@ -70,7 +73,8 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
             ..Default::default()
         },
         kind: options.solver,
-        play: !options.paused,
+        // Teaching starts paused: the class sees one shot per click.
+        play: !options.paused && options.teach.is_none(),
         max_shots,
         shot_threads: options.solver_threads,
         ..Default::default()
@@ -122,7 +126,18 @@ impl ViewerApp {
             show_plot: true,
         };
         let log_frames = options.automation.frame_log.is_some();
-        Ok(Self {
+        let teach = options.teach.map(|v| TeachState {
+            projector: options.projector,
+            ..TeachState::new(v)
+        });
+        let scripted_steps = match (options.teach, options.automation.screenshot.as_ref()) {
+            (Some(_), Some(plan)) => match plan.when {
+                ScreenshotWhen::Shots(n) => n,
+                _ => 0,
+            },
+            _ => 0,
+        };
+        let mut app = Self {
             solver,
             snapshot: None,
             new_snapshot: false,
@@ -147,7 +162,17 @@ impl ViewerApp {
             logic_start: None,
             outcome,
             persist,
-        })
+            teach,
+        };
+        if app.teach.is_some() {
+            app.solver
+                .queue(Command::Teach(TeachCommand::RecordSteps(true)));
+            // A scripted step-mode screenshot: N clicks on "Shoot once".
+            for _ in 0..scripted_steps {
+                app.solver.queue(Command::Step);
+            }
+        }
+        Ok(app)
     }
 
     pub(super) fn message(&mut self, error: bool, text: impl Into<String>) {
@@ -246,6 +271,7 @@ impl ViewerApp {
             Action::Remesh(size) => self.solver.queue(Command::Remesh(size)),
             Action::SetMethod(m) => self.solver.queue(Command::SetMethod(m)),
             Action::SetSolver(k) => self.solver.queue(Command::SetSolver(k)),
+            Action::Teach(t) => self.solver.queue(Command::Teach(t)),
             Action::OpenDialog => self.open_dialog(
                 ctx,
                 Request::new(Purpose::Open, ("Wavefront OBJ", "obj"), false),
@@ -331,84 +357,6 @@ impl ViewerApp {
             Action::Quit => ctx.send_viewport_cmd(egui::ViewportCommand::Close),
         }
     }
-
-    fn open_dialog(&mut self, ctx: &egui::Context, request: Request) {
-        let c = ctx.clone();
-        if let Err(e) = self.dialogs.open(request, move || c.request_repaint()) {
-            self.message(true, e);
-        }
-    }
-
-    /// Acts on a dialog's answer: the path goes where the dialog was opened for (the
-    /// snapshot then on screen is the one saved or exported).
-    fn finish_dialog(&mut self, ctx: &egui::Context) {
-        let Some(outcome) = self.dialogs.poll() else {
-            return;
-        };
-        match outcome {
-            Outcome::Chosen(purpose, p) => match purpose {
-                Purpose::Open => self.handle(ctx, Action::Open(p)),
-                Purpose::SaveMtlAs => {
-                    if let Some(s) = self.snapshot.clone() {
-                        self.save_mtl(&s, &p);
-                    }
-                }
-                Purpose::ExportPly => {
-                    if let Some(s) = self.snapshot.clone() {
-                        self.export_ply(&s, &p);
-                    }
-                }
-                Purpose::ExportPng => self.request_viewport_png(ctx, p),
-            },
-            Outcome::Cancelled(_) => {}
-            Outcome::Failed(purpose) => {
-                self.message(true, format!("the file dialog ({purpose:?}) failed"));
-            }
-        }
-    }
-
-    fn save_mtl(&mut self, s: &Snapshot, path: &Path) {
-        let text = export::mtl_text(
-            &s.materials,
-            &format!("materials of {} saved by nusselt's viewer", s.scene_name),
-        );
-        match export::atomic_write(path, text.as_bytes()) {
-            Ok(()) => self.message(false, format!("saved {}", path.display())),
-            Err(e) => self.message(true, e.to_string()),
-        }
-    }
-
-    fn export_ply(&mut self, s: &Snapshot, path: &Path) {
-        let bytes = export::ply_bytes(s, self.panel.view.ambient, self.panel.view.exposure());
-        match export::atomic_write(path, &bytes) {
-            Ok(()) => self.message(false, format!("exported {}", path.display())),
-            Err(e) => self.message(true, e.to_string()),
-        }
-    }
-
-    fn request_viewport_png(&mut self, ctx: &egui::Context, path: PathBuf) {
-        self.png_export = Some((path, self.viewport_rect));
-        let slot = self.png_image.clone();
-        let c = ctx.clone();
-        ctx.request_screenshot(move |image| {
-            slot.publish(image);
-            c.request_repaint();
-        });
-    }
-
-    fn finish_viewport_png(&mut self, ctx: &egui::Context) {
-        let Some(image) = self.png_image.take() else {
-            return;
-        };
-        let Some((path, rect)) = self.png_export.take() else {
-            return;
-        };
-        let crop = image.region(&rect, Some(ctx.pixels_per_point()));
-        match export::write_color_image(&path, &crop) {
-            Ok(()) => self.message(false, format!("saved {}", path.display())),
-            Err(e) => self.message(true, e.to_string()),
-        }
-    }
 }
 
 impl eframe::App for ViewerApp {
@@ -461,6 +409,40 @@ impl eframe::App for ViewerApp {
             .show(ui, |ui| {
                 panels::side_panel(ui, &mut self.panel, self.snapshot.as_deref(), &mut actions);
             });
+        if let Some(teach) = self.teach.as_mut() {
+            egui::Panel::right("teach")
+                .default_size(400.0)
+                .resizable(true)
+                .show(ui, |ui| {
+                    super::teach::teach_panel(
+                        ui,
+                        teach,
+                        self.snapshot.as_deref(),
+                        self.panel.selection,
+                        &mut actions,
+                    );
+                });
+            if teach.view != TeachView::Hemicube && teach.sent.take().is_some() {
+                actions.push(Action::Teach(TeachCommand::Hemicube(None)));
+            }
+            // Projector mode: text half as large again, light theme.
+            if teach.projector != teach.projector_applied {
+                teach.projector_applied = teach.projector;
+                ctx.set_zoom_factor(if teach.projector { 1.5 } else { 1.0 });
+                ctx.set_theme(if teach.projector {
+                    egui::Theme::Light
+                } else {
+                    egui::Theme::Dark
+                });
+            }
+            if teach.view != TeachView::Nusselt && teach.nusselt_sent.take().is_some() {
+                actions.push(Action::Teach(TeachCommand::Nusselt(None)));
+            }
+            if teach.view != TeachView::Matrix && teach.matrix_on {
+                teach.matrix_on = false;
+                actions.push(Action::Teach(TeachCommand::Matrix(false)));
+            }
+        }
         egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui, &mut actions));
         self.keys(&ctx, &mut actions);
         for a in actions {

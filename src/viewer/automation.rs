@@ -233,6 +233,7 @@ impl ViewerApp {
                 let edits_done =
                     self.auto.edits.is_empty() || (self.edits_sent && self.edit_latency.is_empty());
                 let ready = edits_done
+                    && super::teach::ready(self.teach.as_ref(), s)
                     && match plan.when {
                         ScreenshotWhen::Shots(n) => {
                             s.stats.steps >= n || s.stats.converged || s.stats.limit_reached

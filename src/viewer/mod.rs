@@ -22,11 +22,13 @@ pub mod automation;
 pub mod camera;
 pub mod dialog;
 pub mod export;
+mod files;
 pub mod frame_log;
 mod panels;
 pub mod render;
 pub mod snapshot;
 pub mod solver_thread;
+pub mod teach;
 mod viewport;
 
 use std::sync::{Arc, OnceLock};
@@ -50,6 +52,10 @@ pub struct UiOptions {
     pub method: FormFactorMethod,
     /// The solver to start with (`--solver`).
     pub solver: crate::solver::SolverKind,
+    /// Teaching mode (`--teach`): the Teach panel opens on this view.
+    pub teach: Option<teach::TeachView>,
+    /// Teaching mode starts in projector mode (large text, light theme).
+    pub projector: bool,
     /// The GPU hemicube, when `method` is `gpu-hemicube` (made on first use otherwise).
     pub raster: Option<std::sync::Arc<dyn crate::formfactor::hemicube::ItemBufferRaster>>,
     /// Window size in points.

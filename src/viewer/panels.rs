@@ -24,6 +24,7 @@ pub enum Action {
     Remesh(f64),
     SetMethod(FormFactorMethod),
     SetSolver(SolverKind),
+    Teach(super::teach::TeachCommand),
     OpenDialog,
     Open(PathBuf),
     OpenBuiltin(String),

@@ -134,12 +134,17 @@ impl Geometry {
 
     /// The patch seen along a ray (front faces only, as drawn).
     pub fn pick(&self, origin: DVec3, dir: DVec3) -> Option<PatchId> {
-        let ray = crate::geometry::Ray::new(origin, dir);
-        let hit = self.bvh.closest_hit(&ray, 0.0, f64::INFINITY)?;
-        let element = *self.triangle_element.get(hit.id as usize)?;
+        let element = self.pick_element(origin, dir)?;
         self.element_patch
             .get(element as usize)
             .map(|&p| PatchId(p))
+    }
+
+    /// The element seen along a ray (front faces only, as drawn).
+    pub fn pick_element(&self, origin: DVec3, dir: DVec3) -> Option<u32> {
+        let ray = crate::geometry::Ray::new(origin, dir);
+        let hit = self.bvh.closest_hit(&ray, 0.0, f64::INFINITY)?;
+        self.triangle_element.get(hit.id as usize).copied()
     }
 }
 
@@ -219,6 +224,14 @@ pub struct Snapshot {
     pub two_sided: bool,
     pub method: FormFactorMethod,
     pub solver_kind: SolverKind,
+    /// Teaching mode: what the last single shot did (while steps are recorded).
+    pub teach_step: Option<Arc<crate::viewer::teach::step::StepDetail>>,
+    /// Teaching mode: the hemicube asked for.
+    pub teach_hemicube: Option<Arc<crate::viewer::teach::hemicube::HemicubeDetail>>,
+    /// Teaching mode: the Nusselt analogue asked for.
+    pub teach_nusselt: Option<Arc<crate::viewer::teach::nusselt::NusseltDetail>>,
+    /// Teaching mode: the form-factor matrix so far and the shooter's column.
+    pub teach_matrix: Option<Arc<crate::viewer::teach::matrix::MatrixDetail>>,
 }
 
 /// Per-drawn-vertex reflectance of the current materials.

@@ -7,7 +7,10 @@ use eframe::egui_wgpu;
 use super::app::ViewerApp;
 use super::panels::Action;
 use super::render::{FLAG_SELECTION, FLAG_SHOOTER, NO_PATCH, Overlays, Uniforms, ViewportCallback};
+use super::snapshot::Snapshot;
 use super::solver_thread::Command;
+use super::teach::TeachView;
+use std::sync::Arc;
 
 impl ViewerApp {
     pub(super) fn viewport(&mut self, ui: &mut egui::Ui, actions: &mut Vec<Action>) {
@@ -57,10 +60,49 @@ impl ViewerApp {
                 rect.height() as f64,
             );
             actions.push(Action::Select(snap.geometry.pick(o, d).map(|p| p.0)));
+            if let Some(teach) = self.teach.as_mut() {
+                teach.element = snap.geometry.pick_element(o, d);
+            }
         }
         let view = &self.panel.view;
         // Multiplies the per-vertex display correction (see `Snapshot::correction`).
-        let ambient = if view.ambient { [1.0; 3] } else { [0.0; 3] };
+        let mut ambient = if view.ambient { [1.0; 3] } else { [0.0; 3] };
+        // Step mode: what the last shot added; matrix view: the shooter's column (colours
+        // as radiance, exposure 0); instead of the solution.
+        let replaced = self.teach.as_ref().and_then(|t| match t.view {
+            TeachView::Step if t.show_received => snap
+                .teach_step
+                .as_ref()
+                .map(|d| d.received_vertices.clone()),
+            TeachView::Matrix if t.show_column => snap
+                .teach_matrix
+                .as_ref()
+                .and_then(|d| d.column_colours.clone()),
+            _ => None,
+        });
+        // The column's colours are display colours: no exposure.
+        let exposure = if replaced.is_some()
+            && self
+                .teach
+                .as_ref()
+                .is_some_and(|t| t.view == TeachView::Matrix)
+        {
+            1.0
+        } else {
+            view.exposure()
+        };
+        let snap = match replaced {
+            Some(radiance) => {
+                ambient = [0.0; 3];
+                Arc::new(Snapshot {
+                    // Its own sequence numbers, so the radiance buffer is uploaded again.
+                    seq: snap.seq | 1 << 62,
+                    radiance,
+                    ..(*snap).clone()
+                })
+            }
+            None => snap,
+        };
         let mut flags = 0;
         if view.highlight_shooter {
             flags |= FLAG_SHOOTER;
@@ -73,7 +115,7 @@ impl ViewerApp {
             view_proj: camera
                 .view_proj(rect.aspect_ratio() as f64)
                 .to_cols_array_2d(),
-            ambient_exposure: [ambient[0], ambient[1], ambient[2], view.exposure()],
+            ambient_exposure: [ambient[0], ambient[1], ambient[2], exposure],
             ids: [shooter, self.panel.selection.unwrap_or(NO_PATCH), flags, 0],
             element_line_color: [0.0, 0.0, 0.0, 0.45],
             patch_line_color: [1.0, 1.0, 1.0, 0.8],

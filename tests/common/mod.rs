@@ -2,6 +2,8 @@
 //! that need a GPU or a display, and the form-factor case files.
 #![allow(dead_code)] // Each test file uses its own subset.
 
+pub mod display;
+
 use std::path::PathBuf;
 
 use glam::DVec3;

@@ -45,9 +45,10 @@ pub(super) fn stats_section(ui: &mut egui::Ui, s: &Snapshot, failed: bool) {
         }
         row(ui, "elapsed", format!("{:.2} s", st.elapsed_seconds));
         let a = s.ambient;
+        // The classic global term; the display adds the solver's own (regional) one.
         row(
             ui,
-            "ambient",
+            "ambient (global)",
             format!("{:.4} {:.4} {:.4}", a[0], a[1], a[2]),
         );
         let status = if failed {

@@ -19,7 +19,9 @@
 //! pass over the mesh; the first state (emitters only) and the first shots are published
 //! at once so light shows up immediately.
 
+mod publish;
 mod switch;
+mod teach;
 mod worker;
 
 use std::collections::VecDeque;
@@ -70,6 +72,8 @@ pub enum Command {
     /// with an [`Event::Error`] (the current solver goes on) when the new kind would refuse
     /// the problem ([`SolverKind::check`]).
     SetSolver(SolverKind),
+    /// Teaching mode's requests (`viewer::teach`).
+    Teach(crate::viewer::teach::TeachCommand),
     /// Load an OBJ file; on error the current scene stays.
     LoadPath(PathBuf),
     /// Replace the scene with one loaded elsewhere.

@@ -1,6 +1,6 @@
 //! Changing what the worker solves with: re-meshing, another form-factor method, another
-//! solver. Each takes the solver apart ([`Solver::into_parts`]), changes the problem or the
-//! kind, and builds the new solver on the same problem and cached rows
+//! solver. Each takes the solver apart ([`crate::solver::Solver::into_parts`]), changes the
+//! problem or the kind, and builds the new solver on the same problem and cached rows
 //! ([`SolverKind::build_with_rows`]); each restarts from dark. A change that is refused
 //! leaves the user with what they had.
 

@@ -9,51 +9,72 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TryRecvError, TrySendError};
 use std::time::{Duration, Instant};
 
-use crate::mesh::PatchId;
 use crate::scene::{LoadOptions, Material, MaterialId, Rgb, Scene};
 use crate::solver::{Problem, Solver, SolverConfig, SolverKind};
 
-use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, Stats, vertex_reflectance};
+use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, vertex_reflectance};
+use super::super::teach::hemicube::{HemicubeDetail, HemicubeRequest};
+use super::super::teach::matrix::{MatrixDetail, MatrixWork};
+use super::super::teach::nusselt::{NusseltDetail, NusseltRequest};
+use super::super::teach::step::{Before, StepDetail};
 use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
 
 pub(super) struct Worker {
-    rx: Receiver<Command>,
-    events: SyncSender<Event>,
-    cancel: Arc<AtomicBool>,
-    latest: Arc<Latest<Arc<Snapshot>>>,
-    waker: Waker,
+    pub(super) rx: Receiver<Command>,
+    pub(super) events: SyncSender<Event>,
+    pub(super) cancel: Arc<AtomicBool>,
+    pub(super) latest: Arc<Latest<Arc<Snapshot>>>,
+    pub(super) waker: Waker,
     pub(super) solver: Option<Box<dyn Solver>>,
     /// The kind of `solver` (and of the next one built, on a load).
     pub(super) kind: SolverKind,
     /// The solver's last step found nothing to do (not cancelled): stepping stops until a
     /// command changes something.
-    exhausted: bool,
-    loaded_materials: Arc<Vec<Material>>,
-    geometry: Option<Arc<Geometry>>,
-    reflectance: Arc<Vec<[f32; 3]>>,
-    reflectance_rev: u64,
-    next_id: u64,
-    scene_rev: u64,
+    pub(super) exhausted: bool,
+    pub(super) loaded_materials: Arc<Vec<Material>>,
+    pub(super) geometry: Option<Arc<Geometry>>,
+    pub(super) reflectance: Arc<Vec<[f32; 3]>>,
+    pub(super) reflectance_rev: u64,
+    pub(super) next_id: u64,
+    pub(super) scene_rev: u64,
     /// The first view of the current scene (`render::view::default_camera`), chosen once
     /// per load.
-    scene_camera: crate::scene::Camera,
-    seq: u64,
-    playing: bool,
-    steps: usize,
-    stop_unshot: f64,
-    max_shots: Option<usize>,
+    pub(super) scene_camera: crate::scene::Camera,
+    pub(super) seq: u64,
+    pub(super) playing: bool,
+    /// Single steps still to take.
+    pub(super) steps: usize,
+    pub(super) stop_unshot: f64,
+    pub(super) max_shots: Option<usize>,
     pub(super) config: SolverConfig,
-    history: Arc<Vec<HistoryPoint>>,
+    pub(super) history: Arc<Vec<HistoryPoint>>,
     /// Solve time since the last (re)start, pauses excluded.
-    elapsed: Duration,
-    last_publish: Option<Instant>,
+    pub(super) elapsed: Duration,
+    pub(super) last_publish: Option<Instant>,
     /// Something changed since the last publish.
-    dirty: bool,
+    pub(super) dirty: bool,
     /// A material edit was applied and not yet published.
-    edit_unpublished: bool,
-    edit_published: Option<Instant>,
+    pub(super) edit_unpublished: bool,
+    pub(super) edit_published: Option<Instant>,
     /// Set by [`Command::PanicOnNextShot`].
-    panic_on_next_shot: Option<String>,
+    pub(super) panic_on_next_shot: Option<String>,
+    /// Teaching mode (`teach.rs`): record single steps, the last one recorded, the
+    /// hemicube asked for and the one computed.
+    pub(super) record_steps: bool,
+    pub(super) step_detail: Option<Arc<StepDetail>>,
+    pub(super) hemicube_request: Option<HemicubeRequest>,
+    pub(super) hemicube_detail: Option<Arc<HemicubeDetail>>,
+    /// What `hemicube_detail` was computed for: request, last shooter, mesh.
+    pub(super) hemicube_key: Option<(HemicubeRequest, Option<u32>, u64)>,
+    pub(super) hemicube_drawn: Option<Instant>,
+    /// The Nusselt view asked for, the one computed, and for what (request, shooter, mesh).
+    pub(super) nusselt_request: Option<NusseltRequest>,
+    pub(super) nusselt_detail: Option<Arc<NusseltDetail>>,
+    pub(super) nusselt_key: Option<(NusseltRequest, Option<u32>, u64)>,
+    /// The matrix view's rows, filled while idle, and what was last published of it.
+    pub(super) matrix_work: Option<MatrixWork>,
+    pub(super) matrix_detail: Option<Arc<MatrixDetail>>,
+    pub(super) matrix_published: Option<(Instant, usize, Option<u32>)>,
 }
 
 enum Flow {
@@ -99,6 +120,18 @@ impl Worker {
             edit_unpublished: false,
             edit_published: None,
             panic_on_next_shot: None,
+            record_steps: false,
+            step_detail: None,
+            hemicube_request: None,
+            hemicube_detail: None,
+            hemicube_key: None,
+            hemicube_drawn: None,
+            nusselt_request: None,
+            nusselt_detail: None,
+            nusselt_key: None,
+            matrix_work: None,
+            matrix_detail: None,
+            matrix_published: None,
         }
     }
 
@@ -109,7 +142,7 @@ impl Worker {
             self.cancel.store(false, Ordering::Relaxed);
             // Drain what is queued; block only when there is nothing to shoot.
             loop {
-                let command = if self.wants_to_shoot() {
+                let command = if self.wants_to_shoot() || self.teach_work_pending() {
                     match self.rx.try_recv() {
                         Ok(c) => c,
                         Err(TryRecvError::Empty) => break,
@@ -140,6 +173,7 @@ impl Worker {
                 self.guarded(None, false, Self::publish);
             }
             self.guarded(None, false, Self::shoot_once);
+            self.guarded(None, false, Self::teach_work_once);
         }
     }
 
@@ -210,9 +244,22 @@ impl Worker {
         let Some(solver) = self.solver.as_mut() else {
             return;
         };
+        // Teaching mode records single steps (not a running solve: it costs a copy of the
+        // state and a row).
+        let before = (self.record_steps && !self.playing)
+            .then(|| Before::take(solver.as_ref()))
+            .flatten();
         let start = Instant::now();
         let stepped = solver.step(&self.cancel);
         self.elapsed += start.elapsed();
+        if stepped {
+            self.step_detail = match (before, &self.geometry) {
+                (Some(b), Some(g)) => {
+                    crate::viewer::teach::step::capture(b, solver.as_ref(), g).map(Arc::new)
+                }
+                _ => None,
+            };
+        }
         if !stepped {
             // Cancelled (a command is waiting: nothing changed), or nothing left to do.
             if !self.cancel.load(Ordering::Relaxed) {
@@ -244,6 +291,10 @@ impl Worker {
         if point.steps <= 3 || self.due() || !self.wants_to_shoot() {
             self.publish();
         }
+    }
+
+    pub(super) fn wants_to_step(&self) -> bool {
+        self.wants_to_shoot()
     }
 
     pub(super) fn send_event(&self, event: Event) {
@@ -284,6 +335,7 @@ impl Worker {
     }
 
     pub(super) fn restart_clock(&mut self) {
+        self.step_detail = None;
         self.elapsed = Duration::ZERO;
         self.history = Arc::new(Vec::new());
         self.dirty = true;
@@ -330,6 +382,7 @@ impl Worker {
             }
             Command::SetMethod(method) => self.set_method(method),
             Command::SetSolver(kind) => self.set_solver(kind),
+            Command::Teach(t) => self.teach(t),
             Command::LoadPath(path) => match Scene::load_obj(&path, &LoadOptions::default()) {
                 Ok(scene) => self.load(scene),
                 Err(e) => self.send_event(Event::Error(e.to_string())),
@@ -375,81 +428,5 @@ impl Worker {
             }
             Err(e) => self.send_event(Event::Error(format!("edit: {e}"))),
         }
-    }
-
-    fn publish(&mut self) {
-        let (Some(solver), Some(geometry)) = (&self.solver, &self.geometry) else {
-            return;
-        };
-        let problem = solver.problem();
-        let plain = solver.element_radiance(false);
-        let shown = solver.element_radiance(true);
-        let correction: Vec<Rgb> = shown.iter().zip(&plain).map(|(s, b)| *s - *b).collect();
-        let radiance = geometry.expand(&problem.mesh.vertex_values(&plain));
-        let correction = geometry.expand(&problem.mesh.vertex_values(&correction));
-        debug_assert!(radiance.iter().flatten().all(|x| x.is_finite()));
-        let ambient = solver.ambient();
-        debug_assert!(ambient.is_finite());
-        let steps_per_second = {
-            let h = &self.history;
-            match (
-                h.last(),
-                h.iter()
-                    .rev()
-                    .find(|p| h.last().is_some_and(|l| l.seconds - p.seconds >= 1.0)),
-            ) {
-                (Some(l), Some(p)) => (l.steps - p.steps) as f64 / (l.seconds - p.seconds),
-                (Some(l), None) if l.seconds > 0.0 => l.steps as f64 / l.seconds,
-                _ => 0.0,
-            }
-        };
-        let residual = solver.residual();
-        let stats = Stats {
-            solver: solver.name(),
-            report: solver.report(),
-            matrix_bytes: solver.matrix_bytes(),
-            elements: geometry.elements,
-            patches: geometry.patches,
-            steps: solver.steps(),
-            steps_per_second,
-            residual,
-            elapsed_seconds: self.elapsed.as_secs_f64(),
-            playing: self.playing,
-            converged: residual <= self.stop_unshot || self.exhausted,
-            limit_reached: self.max_shots.is_some_and(|m| solver.steps() >= m),
-            last_shooter: solver.last_shooter().map(|p: PatchId| p.0),
-        };
-        self.seq += 1;
-        let now = Instant::now();
-        if self.edit_unpublished {
-            self.edit_unpublished = false;
-            self.edit_published = Some(now);
-        }
-        let snapshot = Snapshot {
-            seq: self.seq,
-            published: now,
-            edit_published: self.edit_published,
-            geometry: geometry.clone(),
-            radiance: Arc::new(radiance),
-            correction: Arc::new(correction),
-            reflectance: self.reflectance.clone(),
-            reflectance_rev: self.reflectance_rev,
-            ambient: ambient.as_vec3().to_array(),
-            stats,
-            materials: Arc::new(problem.scene.materials.clone()),
-            loaded_materials: self.loaded_materials.clone(),
-            history: self.history.clone(),
-            scene_name: problem.scene.name.clone(),
-            scene_source: problem.scene.source.clone(),
-            scene_rev: self.scene_rev,
-            scene_camera: self.scene_camera,
-            two_sided: problem.scene.two_sided,
-            method: problem.config.method,
-            solver_kind: self.kind,
-        };
-        self.latest.publish(Arc::new(snapshot));
-        self.last_publish = Some(now);
-        self.dirty = false;
-        (self.waker)();
     }
 }

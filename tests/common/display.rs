@@ -1,0 +1,186 @@
+//! A display for the viewer's end-to-end tests (the current one, or a fresh Xvfb), the
+//! Vulkan driver check, and PNG pictures to measure.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn which(program: &str) -> Option<PathBuf> {
+    std::env::var_os("PATH").and_then(|paths| {
+        std::env::split_paths(&paths)
+            .map(|d| d.join(program))
+            .find(|p| p.is_file())
+    })
+}
+
+pub fn vulkan_driver_present() -> bool {
+    ["/usr/share/vulkan/icd.d", "/etc/vulkan/icd.d"]
+        .iter()
+        .filter_map(|d| std::fs::read_dir(d).ok())
+        .flatten()
+        .any(|e| e.is_ok_and(|e| e.path().extension().is_some_and(|x| x == "json")))
+}
+
+pub struct Display {
+    pub name: String,
+    server: Option<Child>,
+}
+
+impl Drop for Display {
+    fn drop(&mut self) {
+        if let Some(c) = self.server.as_mut() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// The current display, or a fresh Xvfb.
+pub fn display() -> Result<Display, String> {
+    if let Ok(d) = std::env::var("DISPLAY")
+        && !d.is_empty()
+    {
+        return Ok(Display {
+            name: d,
+            server: None,
+        });
+    }
+    let xvfb = which("Xvfb").ok_or("DISPLAY is unset and Xvfb is not installed")?;
+    for attempt in 0..20u32 {
+        let n = 50 + (std::process::id() + attempt * 7) % 400;
+        if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
+            || Path::new(&format!("/tmp/.X{n}-lock")).exists()
+        {
+            continue;
+        }
+        let mut child = Command::new(&xvfb)
+            .args([
+                format!(":{n}").as_str(),
+                "-screen",
+                "0",
+                "1280x800x24",
+                "-nolisten",
+                "tcp",
+            ])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .map_err(|e| format!("cannot start Xvfb: {e}"))?;
+        let deadline = Instant::now() + Duration::from_secs(15);
+        while Instant::now() < deadline {
+            if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
+                return Ok(Display {
+                    name: format!(":{n}"),
+                    server: Some(child),
+                });
+            }
+            if let Ok(Some(_)) = child.try_wait() {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let _ = child.kill();
+        let _ = child.wait();
+    }
+    Err("Xvfb did not start".into())
+}
+
+pub struct Picture {
+    pub width: usize,
+    pub height: usize,
+    pub rgb: Vec<[f64; 3]>,
+}
+
+impl Picture {
+    pub fn load(path: &Path) -> Picture {
+        let img = image::open(path)
+            .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+            .to_rgb8();
+        let (w, h) = img.dimensions();
+        Picture {
+            width: w as usize,
+            height: h as usize,
+            rgb: img
+                .pixels()
+                .map(|p| p.0.map(|c| f64::from(c) / 255.0))
+                .collect(),
+        }
+    }
+
+    /// Mean colour of columns [x0, x1) as fractions of the width.
+    pub fn mean(&self, x0: f64, x1: f64) -> [f64; 3] {
+        let (a, b) = (
+            (x0 * self.width as f64) as usize,
+            (x1 * self.width as f64) as usize,
+        );
+        let mut sum = [0.0; 3];
+        let mut n = 0.0f64;
+        for y in 0..self.height {
+            for x in a..b {
+                let p = self.rgb[y * self.width + x];
+                for c in 0..3 {
+                    sum[c] += p[c];
+                }
+                n += 1.0;
+            }
+        }
+        sum.map(|s| s / n.max(1.0))
+    }
+}
+
+/// Runs the viewer on the Cornell box with `args` (element size, when to take the
+/// screenshot, a window size other than 900x600); returns the window and viewport PNGs, named after `tag`.
+pub fn run_viewer_with(
+    display: &Display,
+    dir: &Path,
+    tag: &str,
+    args: &[&str],
+) -> (PathBuf, PathBuf) {
+    let window = dir.join(format!("window_{tag}.png"));
+    let viewport = dir.join(format!("viewport_{tag}.png"));
+    let runtime = dir.join("runtime");
+    std::fs::create_dir_all(&runtime).expect("runtime dir");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&runtime, std::fs::Permissions::from_mode(0o700)).expect("chmod");
+    }
+    let start = Instant::now();
+    let out = Command::new(env!("CARGO_BIN_EXE_nusselt"))
+        .args(["view", "--builtin", "cornell"])
+        .args(args)
+        // 900x600 unless `args` says otherwise.
+        .args(if args.contains(&"--window") {
+            &[][..]
+        } else {
+            &["--window", "900x600"][..]
+        })
+        .args(["--no-highlight", "--no-ambient", "--screenshot"])
+        .arg(&window)
+        .arg("--viewport-png")
+        .arg(&viewport)
+        .args(["--screenshot-timeout", "240"])
+        .env("DISPLAY", &display.name)
+        .env("XDG_RUNTIME_DIR", &runtime)
+        .env("XDG_DATA_HOME", dir.join("data"))
+        .env("XDG_CONFIG_HOME", dir.join("config"))
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("run nusselt");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "nusselt view failed ({}):\n{stderr}",
+        out.status
+    );
+    eprintln!(
+        "{tag}: {:.1} s; {}",
+        start.elapsed().as_secs_f64(),
+        stderr
+            .lines()
+            .filter(|l| l.starts_with("saved"))
+            .collect::<Vec<_>>()
+            .join("; ")
+    );
+    (window, viewport)
+}

@@ -1,0 +1,171 @@
+//! Teaching mode over the solver thread, without a window: recorded single steps, one step
+//! back (the replay gives exactly the earlier image and numbers), the hemicube kept at the
+//! shooter, and the form-factor matrix filled while the solver is idle (and refused, with
+//! an error event, on a mesh too large for it).
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use nusselt::scene::{LoadOptions, Scene};
+use nusselt::solver::SolverConfig;
+use nusselt::viewer::snapshot::Snapshot;
+use nusselt::viewer::solver_thread::{Command, SolverHandle, ThreadConfig};
+use nusselt::viewer::teach::TeachCommand;
+use nusselt::viewer::teach::hemicube::HemicubeRequest;
+
+fn send(h: &SolverHandle, mut c: Command, deadline: Instant) {
+    loop {
+        match h.send(c) {
+            Ok(()) => return,
+            Err(back) => {
+                assert!(Instant::now() < deadline, "channel stayed full");
+                c = back;
+                std::thread::sleep(Duration::from_micros(200));
+            }
+        }
+    }
+}
+
+fn first_snapshot(
+    h: &SolverHandle,
+    deadline: Instant,
+    want: impl Fn(&Snapshot) -> bool,
+) -> Arc<Snapshot> {
+    loop {
+        assert!(Instant::now() < deadline, "no matching snapshot in time");
+        if let Some(s) = h.take_snapshot()
+            && want(&s)
+        {
+            return s;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+#[test]
+fn steps_back_hemicube_and_matrix_over_the_thread() {
+    let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+    let mut h = SolverHandle::spawn(
+        scene,
+        ThreadConfig {
+            solver: SolverConfig {
+                element_size: Some(60.0),
+                patch_size: Some(120.0),
+                ..Default::default()
+            },
+            play: false,
+            ..Default::default()
+        },
+        Box::new(|| {}),
+    )
+    .expect("spawn");
+    let deadline = Instant::now() + Duration::from_secs(240);
+    send(
+        &h,
+        Command::Teach(TeachCommand::RecordSteps(true)),
+        deadline,
+    );
+    send(&h, Command::Step, deadline);
+    send(&h, Command::Step, deadline);
+    let two = first_snapshot(&h, deadline, |s| s.stats.steps == 2);
+    let d2 = two.teach_step.clone().expect("the second shot recorded");
+    assert_eq!(d2.step, 2);
+    assert_eq!(two.stats.last_shooter, Some(d2.shooter));
+    send(&h, Command::Step, deadline);
+    let three = first_snapshot(&h, deadline, |s| s.stats.steps == 3);
+    assert_eq!(three.teach_step.as_ref().map(|d| d.step), Some(3));
+    assert_ne!(three.radiance, two.radiance);
+
+    // Back: exactly the state after two shots, and its numbers again.
+    send(&h, Command::Teach(TeachCommand::Back), deadline);
+    let back = first_snapshot(&h, deadline, |s| s.seq > three.seq && s.stats.steps == 2);
+    assert_eq!(back.radiance, two.radiance, "back is not the earlier image");
+    assert_eq!(back.stats.last_shooter, two.stats.last_shooter);
+    let db = back.teach_step.clone().expect("the replayed shot recorded");
+    assert_eq!((db.step, db.shooter), (2, d2.shooter));
+    assert_eq!(db.received, d2.received);
+    assert!(back.history.iter().all(|p| p.steps <= 2));
+
+    // The hemicube follows the shooter.
+    let request = HemicubeRequest {
+        res: 16,
+        patch: None,
+        receiver: None,
+    };
+    send(
+        &h,
+        Command::Teach(TeachCommand::Hemicube(Some(request))),
+        deadline,
+    );
+    send(&h, Command::Step, deadline);
+    let cube = first_snapshot(&h, deadline, |s| {
+        s.stats.steps == 3
+            && s.teach_hemicube
+                .as_ref()
+                .is_some_and(|d| Some(d.patch) == s.stats.last_shooter)
+    });
+    let d = cube.teach_hemicube.clone().expect("hemicube");
+    assert_eq!(d.res, 16);
+    assert_eq!(d.request, request);
+
+    // The matrix fills while the solver is idle (paused), shooter's row first.
+    send(&h, Command::Teach(TeachCommand::Matrix(true)), deadline);
+    let full = first_snapshot(&h, deadline, |s| {
+        s.teach_matrix
+            .as_ref()
+            .is_some_and(|d| d.rows_done == d.patches)
+    });
+    let m = full.teach_matrix.clone().expect("matrix");
+    assert_eq!(m.patches, full.geometry.patches);
+    assert!(m.patch_f.iter().all(|f| f.is_finite() && *f >= 0.0));
+    assert_eq!(m.shooter, full.stats.last_shooter);
+    assert!(
+        m.column_colours
+            .as_ref()
+            .is_some_and(|c| c.len() == full.geometry.positions.len())
+    );
+    assert_eq!(
+        full.stats.steps, 3,
+        "filling the matrix must not step the solver"
+    );
+    assert!(h.shutdown(Duration::from_secs(30)));
+}
+
+/// The matrix view refuses a mesh whose patch matrix would be too large to copy to the UI
+/// (an error event saying why), and the solver goes on.
+#[test]
+fn the_matrix_view_refuses_too_many_patches() {
+    let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+    let mut h = SolverHandle::spawn(
+        scene,
+        ThreadConfig {
+            solver: SolverConfig {
+                element_size: Some(20.0),
+                patch_size: Some(20.0),
+                ..Default::default()
+            },
+            play: false,
+            ..Default::default()
+        },
+        Box::new(|| {}),
+    )
+    .expect("spawn");
+    let deadline = Instant::now() + Duration::from_secs(240);
+    let first = first_snapshot(&h, deadline, |_| true);
+    assert!(first.geometry.patches > nusselt::viewer::teach::matrix::MAX_PATCHES);
+    send(&h, Command::Teach(TeachCommand::Matrix(true)), deadline);
+    send(&h, Command::Step, deadline);
+    let after = first_snapshot(&h, deadline, |s| s.stats.steps == 1);
+    assert!(after.teach_matrix.is_none());
+    let errors: Vec<_> = std::iter::from_fn(|| h.try_event())
+        .filter_map(|e| match e {
+            nusselt::viewer::solver_thread::Event::Error(m) => Some(m),
+            _ => None,
+        })
+        .collect();
+    assert!(
+        errors.iter().any(|m| m.contains("at most 2048 patches")),
+        "{errors:?}"
+    );
+    assert!(h.shutdown(Duration::from_secs(30)));
+}
