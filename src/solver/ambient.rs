@@ -41,8 +41,9 @@ const GRID_CELLS: f64 = 16.0;
 /// Rays for all regions together (at least [`MIN_RAYS`] per region).
 const TOTAL_RAYS: usize = 200_000;
 const MIN_RAYS: usize = 128;
-/// Fixed-point iterations of the coarse system before its tail is extrapolated.
-const MAX_ITERATIONS: usize = 500;
+/// Fixed-point iterations of the coarse system before its tail is extrapolated (the
+/// viewer evaluates it on every publish).
+const MAX_ITERATIONS: usize = 50;
 
 /// The regions of a mesh and the sampled transport between them (see the module docs).
 pub struct RegionalAmbient {
@@ -132,6 +133,7 @@ impl RegionalAmbient {
             return g;
         }
         let mut last_norm = f64::INFINITY;
+        let mut ratio = f64::NAN;
         for _ in 0..MAX_ITERATIONS {
             let weighted: Vec<Rgb> = increment.iter().zip(rho).map(|(x, r)| *x * *r).collect();
             increment = transport(&weighted);
@@ -141,17 +143,21 @@ impl RegionalAmbient {
                 .fold(0.0, f64::max);
             g.iter_mut().zip(&increment).for_each(|(a, b)| *a += *b);
             if norm <= 1e-6 * scale {
-                break;
+                return g;
             }
-            let ratio = (norm / last_norm).min(0.9999);
+            ratio = (norm / last_norm).min(0.9999);
             last_norm = norm;
-            if ratio.is_finite() && norm <= 1e-3 * scale {
-                let tail = ratio / (1.0 - ratio);
-                g.iter_mut()
-                    .zip(&increment)
-                    .for_each(|(a, b)| *a += *b * tail);
+            if norm <= 1e-3 * scale {
                 break;
             }
+        }
+        // The rest of the series, `increment · (r + r² + …)`, from the last ratio (high
+        // reflectance reaches the iteration cap first: this keeps a display call cheap).
+        if ratio.is_finite() {
+            let tail = ratio / (1.0 - ratio);
+            g.iter_mut()
+                .zip(&increment)
+                .for_each(|(a, b)| *a += *b * tail);
         }
         debug_assert!(g.iter().all(|v| v.is_finite()));
         g
