@@ -322,7 +322,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         super::bench_images::ambient(&args.out, args.seconds)?;
     }
     if wanted("cornell-image") {
-        super::bench_images::cornell(&args.out, &args.cornell_reference, args.seconds)?;
+        super::bench_cornell::cornell(&args.out, &args.cornell_reference, args.seconds)?;
     }
     if wanted("edit") || wanted("cornell") {
         live_edits(&args.out)?;

@@ -4,6 +4,7 @@
 //! extend them, don't rename them.
 
 pub mod bench;
+mod bench_cornell;
 mod bench_images;
 pub mod cases;
 mod formfactor;
