@@ -123,17 +123,12 @@ pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
             let t0 = Instant::now();
             let t = setup + run_start.elapsed().as_secs_f64() - rec.paused;
             let unshot = shooting.unshot_fraction();
-            let global = {
-                let a = shooting.ambient();
-                let rho = shooting.problem().element_reflectance();
-                let shown: Vec<Rgb> = shooting
-                    .radiosity()
-                    .iter()
-                    .zip(&rho)
-                    .map(|(b, r)| (*b + *r * a).max(Rgb::ZERO))
-                    .collect();
-                rec.error(&render_elements(shooting.problem(), &shown, &bvh, 4))
-            };
+            let global = rec.error(&render_elements(
+                shooting.problem(),
+                &shooting.element_radiance_global_ambient(),
+                &bvh,
+                4,
+            ));
             let none = rec.error(&render_elements(
                 shooting.problem(),
                 &shooting.element_radiance(false),

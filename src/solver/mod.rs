@@ -284,14 +284,14 @@ pub trait Solver: Send {
     ) -> Result<(), SolverError>;
     /// Back to the dark start (cached form factors kept).
     fn reset(&mut self);
-    /// Channel mean of the display correction added to a unit reflectance (the ambient
-    /// term of shooting; 0 for solvers without one).
+    /// Channel mean of [`ambient`](Self::ambient).
     fn ambient_mean(&self) -> f64 {
-        0.0
+        let a = self.ambient();
+        (a.x + a.y + a.z) / 3.0
     }
-    /// The display correction per channel (the ambient term of shooting; zero for solvers
-    /// without one): [`element_radiance`](Self::element_radiance) with `with_ambient` adds
-    /// `ρ_j` times it (clamped at zero).
+    /// The classic global ambient term per channel (shooting; zero for solvers without
+    /// one). [`element_radiance`](Self::element_radiance) with `with_ambient` adds `ρ_j`
+    /// times it, or times the regional estimate where that is configured.
     fn ambient(&self) -> Rgb {
         Rgb::ZERO
     }

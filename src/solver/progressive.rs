@@ -258,29 +258,29 @@ impl ProgressiveSolver {
     /// cancelled: the image is too bright on average, and the term is still exact on
     /// average in a closed uniform scene); an element it would take below zero shows 0.
     pub fn element_radiance(&self, with_ambient: bool) -> Vec<Rgb> {
-        let per_patch = if !with_ambient {
-            None
-        } else if self.problem.config.regional_ambient {
-            Some(self.regional_ambient())
+        if !with_ambient {
+            return self.radiosity.clone();
+        }
+        if self.problem.config.regional_ambient {
+            self.shown_with(&self.regional_ambient())
         } else {
-            Some(vec![self.ambient(); self.problem.mesh.patches.len()])
-        };
-        let elements = &self.problem.mesh.elements;
+            self.element_radiance_global_ambient()
+        }
+    }
+
+    /// [`element_radiance`](Self::element_radiance) with the classic global ambient term,
+    /// whatever the configuration (for comparing the two).
+    pub fn element_radiance_global_ambient(&self) -> Vec<Rgb> {
+        self.shown_with(&vec![self.ambient(); self.problem.mesh.patches.len()])
+    }
+
+    /// `max(B_j + ρ_j G_p, 0)` per element, `G_p` the ambient term of its patch.
+    fn shown_with(&self, per_patch: &[Rgb]) -> Vec<Rgb> {
         self.radiosity
             .iter()
             .zip(&self.element_rho)
-            .zip(elements)
-            .map(|((b, rho), e)| {
-                let ambient = per_patch
-                    .as_ref()
-                    .map_or(Rgb::ZERO, |g| g[e.patch.0 as usize]);
-                let shown = *b + *rho * ambient;
-                if with_ambient {
-                    shown.max(Rgb::ZERO)
-                } else {
-                    shown
-                }
-            })
+            .zip(&self.problem.mesh.elements)
+            .map(|((b, rho), e)| (*b + *rho * per_patch[e.patch.0 as usize]).max(Rgb::ZERO))
             .collect()
     }
 
@@ -502,10 +502,6 @@ impl Solver for ProgressiveSolver {
     }
     fn ambient(&self) -> Rgb {
         ProgressiveSolver::ambient(self)
-    }
-    fn ambient_mean(&self) -> f64 {
-        let a = ProgressiveSolver::ambient(self);
-        (a.x + a.y + a.z) / 3.0
     }
     fn matrix_bytes(&self) -> usize {
         self.rows.bytes()
