@@ -65,6 +65,10 @@ pub struct RenderArgs {
     /// where the unshot light can reach, default) or `global` (the classic uniform term).
     #[arg(long, default_value = "regional")]
     pub ambient: String,
+    /// BF refinement threshold of `--solver hierarchical`, relative to the scene's mean
+    /// emitted radiosity: smaller gives more links, a finer answer and a longer solve.
+    #[arg(long, allow_negative_numbers = true)]
+    pub link_tolerance: Option<f64>,
     /// How the image is made from the solution: `vertex` (radiosity interpolated over the
     /// mesh) or `direct` (the lights' direct contribution per pixel with exact form factors
     /// and shadow rays, the indirect rest from the solution; sharper shadows, ~1 s more).
@@ -291,6 +295,17 @@ fn render(args: &RenderArgs) -> Result<()> {
             kind.name()
         );
     }
+    if let Some(t) = args.link_tolerance {
+        if !(t.is_finite() && t > 0.0) {
+            bail!("--link-tolerance must be a positive number, got {t}");
+        }
+        if kind != SolverKind::Hierarchical {
+            bail!(
+                "--link-tolerance is the refinement threshold of --solver hierarchical; it does nothing for --solver {}",
+                kind.name()
+            );
+        }
+    }
     if let Some(p) = args.patch_size
         && !(p.is_finite() && p > 0.0)
     {
@@ -327,6 +342,9 @@ fn render(args: &RenderArgs) -> Result<()> {
         max_elements: args.max_elements,
         overshoot: !args.no_overshoot,
         regional_ambient,
+        link_tolerance: args
+            .link_tolerance
+            .unwrap_or(crate::solver::DEFAULT_LINK_TOLERANCE),
         row_cache_bytes: max_memory_bytes(args.max_memory)?,
         raster: raster_for(method)?,
     };
@@ -492,6 +510,10 @@ fn render(args: &RenderArgs) -> Result<()> {
                 .unwrap_or_default(),
             args.out.display()
         );
+        let report = solver.report();
+        if !report.is_empty() {
+            eprintln!("{}: {report}", solver.name());
+        }
     }
     Ok(())
 }

@@ -24,6 +24,7 @@ use crate::scene::{MaterialId, Rgb};
 pub mod ambient;
 pub mod cg;
 pub mod gathering;
+pub mod hierarchical;
 pub mod matrix;
 pub mod problem;
 pub mod progressive;
@@ -32,6 +33,7 @@ pub mod rows;
 
 pub use cg::CgSolver;
 pub use gathering::{GatherMethod, GatheringSolver};
+pub use hierarchical::HierarchicalSolver;
 pub use matrix::MatrixSolver;
 pub use problem::Problem;
 pub use progressive::ProgressiveSolver;
@@ -58,6 +60,9 @@ pub struct SolverConfig {
     /// Display correction of shooting: the regional ambient term ([`ambient`]) instead of
     /// the classic global one.
     pub regional_ambient: bool,
+    /// Hierarchical radiosity's BF refinement threshold, relative to the scene's area-mean
+    /// emitted radiosity (`--link-tolerance`): smaller gives more links and a finer answer.
+    pub link_tolerance: f64,
     /// The rasteriser of `gpu-hemicube` rows (`crate::gpu::GpuHemicube`); required by that
     /// method, unused by the others.
     pub raster: Option<Arc<dyn ItemBufferRaster>>,
@@ -74,10 +79,14 @@ impl Default for SolverConfig {
             row_cache_bytes: 512 << 20,
             overshoot: true,
             regional_ambient: true,
+            link_tolerance: DEFAULT_LINK_TOLERANCE,
             raster: None,
         }
     }
 }
+
+/// Default of [`SolverConfig::link_tolerance`].
+pub const DEFAULT_LINK_TOLERANCE: f64 = 0.002;
 
 #[derive(Debug, thiserror::Error)]
 pub enum SolverError {
@@ -180,11 +189,20 @@ pub enum SolverKind {
     /// Successive over-relaxation; `None` = ω estimated from the first sweeps.
     Sor(Option<f64>),
     Cg,
+    /// Hierarchical radiosity with clustering ([`hierarchical`]).
+    Hierarchical,
 }
 
 impl SolverKind {
     /// Names as the command line spells them.
-    pub const NAMES: &'static [&'static str] = &["shooting", "jacobi", "gauss-seidel", "sor", "cg"];
+    pub const NAMES: &'static [&'static str] = &[
+        "shooting",
+        "jacobi",
+        "gauss-seidel",
+        "sor",
+        "cg",
+        "hierarchical",
+    ];
 
     /// Parses a `--solver` name; `omega` applies to `sor`.
     pub fn parse(name: &str, omega: Option<f64>) -> Option<SolverKind> {
@@ -194,6 +212,7 @@ impl SolverKind {
             "gauss-seidel" | "gs" => SolverKind::GaussSeidel,
             "sor" => SolverKind::Sor(omega),
             "cg" => SolverKind::Cg,
+            "hierarchical" | "hr" => SolverKind::Hierarchical,
             _ => return None,
         })
     }
@@ -206,6 +225,7 @@ impl SolverKind {
             SolverKind::GaussSeidel => "gauss-seidel",
             SolverKind::Sor(_) => "sor",
             SolverKind::Cg => "cg",
+            SolverKind::Hierarchical => "hierarchical",
         }
     }
 
@@ -213,7 +233,7 @@ impl SolverKind {
     /// the memory budget), without taking it.
     pub fn check(self, problem: &Problem) -> Result<(), SolverError> {
         match self {
-            SolverKind::Shooting => Ok(()),
+            SolverKind::Shooting | SolverKind::Hierarchical => Ok(()),
             SolverKind::Sor(omega) => {
                 gathering::check_omega(GatherMethod::Sor(omega))?;
                 matrix::PatchMatrix::check(problem, self.name())
@@ -253,6 +273,8 @@ impl SolverKind {
                 rows,
             )?),
             SolverKind::Cg => Box::new(CgSolver::with_rows(problem, rows)?),
+            // Links, not rows: cached rows are dropped.
+            SolverKind::Hierarchical => Box::new(HierarchicalSolver::new(problem)),
         })
     }
 }
@@ -260,7 +282,7 @@ impl SolverKind {
 /// One solver of the radiosity system. A *step* is a solver's unit of work: a shot, a
 /// form-factor row while a matrix is being built, or a sweep.
 pub trait Solver: Send {
-    /// `shooting`, `jacobi`, `gauss-seidel`, `sor` or `cg`.
+    /// `shooting`, `jacobi`, `gauss-seidel`, `sor`, `cg` or `hierarchical`.
     fn name(&self) -> &'static str;
     fn problem(&self) -> &Problem;
     /// One step. `false` when there is nothing left to do or `cancel` was set.
