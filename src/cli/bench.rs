@@ -33,7 +33,7 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 20.0)]
     pub seconds: f64,
     /// Only the scenes whose name contains this (e.g. `furnace`, `cube-0.99`, `cornell`,
-    /// `tworooms`, `cornell-image`).
+    /// `tworooms`, `cornell-image`, `hierarchical`).
     #[arg(long)]
     pub only: Option<String>,
     /// The Cornell box's path-traced reference image for `cornell-image`.
@@ -43,13 +43,13 @@ pub struct BenchArgs {
 
 /// Resets the process's peak resident memory (Linux: `5` to `/proc/self/clear_refs`), so
 /// that [`peak_mb`] after a run is that run's peak. Elsewhere a no-op.
-fn reset_peak() {
+pub(super) fn reset_peak() {
     let _ = std::fs::write("/proc/self/clear_refs", "5");
 }
 
 /// Peak resident memory since the last [`reset_peak`] (VmHWM), in MiB; `None` where the
 /// system does not say.
-fn peak_mb() -> Option<f64> {
+pub(super) fn peak_mb() -> Option<f64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
@@ -320,6 +320,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     }
     if wanted("tworooms") {
         super::bench_images::ambient(&args.out, args.seconds)?;
+    }
+    if wanted("hierarchical") {
+        super::bench_hierarchical::cornell(&args.out, &args.cornell_reference)?;
     }
     if wanted("cornell-image") {
         super::bench_cornell::cornell(&args.out, &args.cornell_reference, args.seconds)?;

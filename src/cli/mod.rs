@@ -5,6 +5,7 @@
 
 pub mod bench;
 mod bench_cornell;
+mod bench_hierarchical;
 mod bench_images;
 pub mod cases;
 mod formfactor;
