@@ -361,6 +361,14 @@ fn solver_flags_are_checked() {
         &with(&["--omega", "1.5"]),
         "does nothing for --solver shooting",
     );
+    refused(
+        &with(&["--solver", "hierarchical", "--link-tolerance", "0"]),
+        "--link-tolerance must be a positive number",
+    );
+    refused(
+        &with(&["--link-tolerance", "0.01"]),
+        "--link-tolerance is the refinement threshold of --solver hierarchical",
+    );
     refused(&with(&["--tolerance", "0"]), "--tolerance");
     refused(&with(&["--tolerance", "nan"]), "--tolerance");
     refused(&with(&["--ambient", "local"]), "unknown --ambient 'local'");

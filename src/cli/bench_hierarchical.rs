@@ -32,8 +32,8 @@ pub fn cornell(out: &Path, reference_path: &Path) -> Result<()> {
     let camera = render::view::default_camera(&scene);
     let mask = render::error_mask(&scene, &camera, reference.width, reference.height);
     let path = out.join("hierarchical.csv");
-    let mut csv = std::fs::File::create(&path)
-        .with_context(|| format!("creating {}", path.display()))?;
+    let mut csv =
+        std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
     writeln!(
         csv,
         "solver,link_tolerance,elements,steps,solve_seconds,image_error,stored_mb,peak_rss_mb,report"
@@ -44,7 +44,11 @@ pub fn cornell(out: &Path, reference_path: &Path) -> Result<()> {
         "solver", "tolerance", "elements", "steps", "solve s", "error %", "stored MB", "peak MB"
     );
     let mut runs: Vec<(SolverKind, Option<f64>)> = vec![(SolverKind::Shooting, None)];
-    runs.extend(TOLERANCES.iter().map(|t| (SolverKind::Hierarchical, Some(*t))));
+    runs.extend(
+        TOLERANCES
+            .iter()
+            .map(|t| (SolverKind::Hierarchical, Some(*t))),
+    );
     let never = AtomicBool::new(false);
     for (kind, tolerance) in runs {
         reset_peak();
