@@ -180,6 +180,8 @@ impl Linker<'_> {
             };
         }
         if ni.is_cluster() {
+            // A cluster's elements face every way: pushing one irradiance to all of them
+            // is wrong by about its own size, so clusters send but do not receive.
             return Decision::SplitReceiver;
         }
         let d = nj.centroid - ni.centroid;
