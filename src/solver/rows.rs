@@ -1,6 +1,9 @@
 //! Form-factor rows, cached: `F_ji` from every element `j` to one shooting patch `i`,
-//! computed on first use and kept up to a memory budget (rows past it are recomputed when
-//! needed). Shooting reads a row per shot; gathering reads each row once per matrix.
+//! computed on first use and kept up to a memory budget; past it the least recently used
+//! rows are evicted (and recomputed if needed again). Shooting reads a row per shot, and
+//! the patches it shoots again and again are the bright ones, so they stay; gathering
+//! reads each row once per matrix and is refused a matrix over the budget, so it never
+//! evicts.
 
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -34,18 +37,35 @@ fn conserve_energy(mesh: &Mesh, shooter: PatchId, row: &mut [f32]) {
     }
 }
 
-/// Rows by shooting patch, with a memory budget.
+/// Rows by shooting patch, with a memory budget and least-recently-used eviction.
 #[derive(Default)]
 pub struct RowCache {
     rows: Vec<Option<Arc<[f32]>>>,
+    /// Per patch, the clock of its row's last use.
+    last_use: Vec<u64>,
+    clock: u64,
     cached_bytes: usize,
+    evictions: usize,
 }
 
 impl RowCache {
     /// Forgets every row (the mesh or the form-factor method changed).
     pub fn clear(&mut self) {
         self.rows.clear();
+        self.last_use.clear();
         self.cached_bytes = 0;
+    }
+
+    /// Rows evicted to stay within the budget so far.
+    pub fn evictions(&self) -> usize {
+        self.evictions
+    }
+
+    /// Whether the row of `shooter` is cached.
+    pub fn contains(&self, shooter: PatchId) -> bool {
+        self.rows
+            .get(shooter.0 as usize)
+            .is_some_and(|r| r.is_some())
     }
 
     /// Memory held by cached rows, in bytes.
@@ -63,9 +83,13 @@ impl RowCache {
     ) -> Option<Arc<[f32]>> {
         if self.rows.len() != problem.mesh.patches.len() {
             self.rows = vec![None; problem.mesh.patches.len()];
+            self.last_use = vec![0; problem.mesh.patches.len()];
             self.cached_bytes = 0;
         }
-        if let Some(r) = &self.rows[shooter.0 as usize] {
+        self.clock += 1;
+        let s = shooter.0 as usize;
+        if let Some(r) = &self.rows[s] {
+            self.last_use[s] = self.clock;
             return Some(r.clone());
         }
         let mut out = vec![0f32; problem.mesh.elements.len()];
@@ -76,10 +100,60 @@ impl RowCache {
         conserve_energy(&problem.mesh, shooter, &mut out);
         let row: Arc<[f32]> = out.into();
         let bytes = row.len() * 4;
-        if self.cached_bytes + bytes <= problem.config.row_cache_bytes {
-            self.cached_bytes += bytes;
-            self.rows[shooter.0 as usize] = Some(row.clone());
+        let budget = problem.config.row_cache_bytes;
+        if bytes > budget {
+            return Some(row);
         }
+        while self.cached_bytes + bytes > budget {
+            let oldest = (0..self.rows.len())
+                .filter(|&k| self.rows[k].is_some())
+                .min_by_key(|&k| self.last_use[k]);
+            let Some(k) = oldest else { break };
+            let freed = self.rows[k].take().map_or(0, |r| r.len() * 4);
+            self.cached_bytes -= freed;
+            self.evictions += 1;
+        }
+        self.cached_bytes += bytes;
+        self.rows[s] = Some(row.clone());
+        self.last_use[s] = self.clock;
         Some(row)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{LoadOptions, Scene};
+    use crate::solver::SolverConfig;
+
+    /// A budget of two rows: the third row evicts the least recently used, the cache never
+    /// holds more than the budget, and an evicted row comes back identical.
+    #[test]
+    fn the_least_recently_used_row_is_evicted() {
+        let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+        let mut problem = Problem::new(
+            scene,
+            SolverConfig {
+                element_size: Some(100.0),
+                ..SolverConfig::default()
+            },
+        )
+        .expect("problem");
+        problem.config.row_cache_bytes = 2 * problem.mesh.elements.len() * 4;
+        let never = AtomicBool::new(false);
+        let mut cache = RowCache::default();
+        let (a, b, c) = (PatchId(0), PatchId(1), PatchId(2));
+        let first_a = cache.row(&problem, a, &never).expect("row");
+        cache.row(&problem, b, &never).expect("row");
+        cache.row(&problem, a, &never).expect("row"); // a is now the most recent
+        cache.row(&problem, c, &never).expect("row");
+        assert!(cache.contains(a) && cache.contains(c) && !cache.contains(b));
+        assert_eq!(cache.evictions(), 1);
+        assert!(cache.bytes() <= problem.config.row_cache_bytes);
+        cache.row(&problem, b, &never).expect("row"); // evicts a
+        assert!(!cache.contains(a));
+        let again_a = cache.row(&problem, a, &never).expect("row");
+        assert_eq!(&first_a[..], &again_a[..]);
+        assert_eq!(cache.evictions(), 3);
     }
 }
