@@ -259,3 +259,60 @@ fn the_chosen_solver_survives_a_remesh_and_a_method_change() {
     );
     assert!(h.shutdown(Duration::from_secs(30)));
 }
+
+/// Hierarchical radiosity chosen over the thread: it keeps the mesh, reports its links and
+/// their memory, converges, and shows exactly what the same solver run directly computes
+/// (its accuracy is tested in `src/solver/hierarchical`; here, that the thread runs it
+/// unchanged: deterministic links, the same values to f32 round-off).
+#[test]
+fn hierarchical_over_the_thread_matches_a_direct_run() {
+    let stop = 1e-5;
+    let mut h = spawn(ThreadConfig {
+        solver: coarse_config(),
+        stop_unshot: stop,
+        ..Default::default()
+    });
+    let deadline = Instant::now() + Duration::from_secs(240);
+    let shooting = first_snapshot(&h, deadline, |s| s.stats.steps >= 5);
+    send(&h, Command::SetSolver(SolverKind::Hierarchical), deadline);
+    let done = first_snapshot(&h, deadline, |s| {
+        s.stats.solver == "hierarchical" && s.stats.converged
+    });
+    let errors = events(&h);
+    assert!(errors.is_empty(), "unexpected events: {errors:?}");
+    h.shutdown(Duration::from_secs(30));
+
+    assert_eq!(done.solver_kind, SolverKind::Hierarchical);
+    assert_eq!(
+        done.geometry.id, shooting.geometry.id,
+        "the switch keeps the mesh"
+    );
+    assert!(
+        done.stats.residual <= stop,
+        "residual {}",
+        done.stats.residual
+    );
+    assert!(done.stats.report.contains("links"), "{}", done.stats.report);
+    assert!(done.stats.matrix_bytes > 0);
+
+    let problem = nusselt::solver::Problem::new(cornell(), coarse_config()).expect("problem");
+    let mut direct = SolverKind::Hierarchical.build(problem).expect("solver");
+    nusselt::solver::run_solver(
+        direct.as_mut(),
+        &StopCriteria {
+            unshot: stop,
+            ..Default::default()
+        },
+        &AtomicBool::new(false),
+        &mut |_, _| {},
+    );
+    assert_eq!(direct.steps(), done.stats.steps);
+    let want = done.geometry.expand(
+        &direct
+            .problem()
+            .mesh
+            .vertex_values(&direct.element_radiance(false)),
+    );
+    let rel = rel_l2(&done.radiance, &want, &done.geometry);
+    assert!(rel < 1e-5, "thread and direct run differ by {rel}");
+}
