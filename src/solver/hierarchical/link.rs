@@ -88,20 +88,26 @@ impl Linker<'_> {
 
     /// Links covering the pairs `(receiver, sender)` of `frontier`, each refined until it
     /// meets the oracle against node radiosities `b` and threshold `eps`. Breadth-first,
-    /// each level in parallel; the result is in a deterministic order. `None` if `cancel`
-    /// was set.
+    /// each level in parallel; the result is in a deterministic order. Once the links
+    /// (made and still to come) would pass `max_links`, every pair left is kept as it is
+    /// except where the hierarchy forces a split (a cluster receiver, overlapping nodes);
+    /// the flag says so. `None` if `cancel` was set.
     pub fn refine(
         &self,
         mut frontier: Vec<(u32, u32)>,
         b: &[Rgb],
         eps: f64,
+        max_links: usize,
         cancel: &AtomicBool,
-    ) -> Option<Vec<Link>> {
+    ) -> Option<(Vec<Link>, bool)> {
         let mut links = Vec::new();
+        let mut capped = false;
         while !frontier.is_empty() {
             if cancel.load(Ordering::Relaxed) {
                 return None;
             }
+            capped |= links.len() + 2 * frontier.len() > max_links;
+            let eps = if capped { f64::INFINITY } else { eps };
             let parts: Vec<(Vec<Link>, Vec<Pair>)> = frontier
                 .par_chunks(256)
                 .map(|chunk| {
@@ -119,7 +125,7 @@ impl Linker<'_> {
                 frontier.extend(next);
             }
         }
-        Some(links)
+        Some((links, capped))
     }
 
     /// One decision on the pair `i ← j`: a kept link into `kept`, or child pairs into `next`.

@@ -55,6 +55,8 @@ pub struct HierarchicalSolver {
     /// Links made by refinement so far (kept or later split).
     links_made: usize,
     residual_at_refine: f64,
+    /// Refinement stopped short at the memory budget (`SolverConfig::row_cache_bytes`).
+    link_budget_reached: bool,
     refine_seconds: f64,
     gather_seconds: f64,
 }
@@ -77,6 +79,7 @@ impl HierarchicalSolver {
             steps: 0,
             links_made: 0,
             residual_at_refine: f64::INFINITY,
+            link_budget_reached: false,
             refine_seconds: 0.0,
             gather_seconds: 0.0,
         };
@@ -134,9 +137,14 @@ impl HierarchicalSolver {
         if frontier.is_empty() {
             return true;
         }
-        let Some(new_links) = linker.refine(frontier, &self.node_b, eps, cancel) else {
+        let budget = self.problem.config.row_cache_bytes / std::mem::size_of::<Link>();
+        let max_links = budget.saturating_sub(kept.len());
+        let Some((new_links, capped)) =
+            linker.refine(frontier, &self.node_b, eps, max_links, cancel)
+        else {
             return false;
         };
+        self.link_budget_reached |= capped;
         self.links_made += new_links.len();
         let mut links = kept;
         links.extend(new_links);
@@ -324,7 +332,11 @@ impl Solver for HierarchicalSolver {
             self.bytes() as f64 / 1e6,
             self.refine_seconds,
             self.gather_seconds
-        )
+        ) + if self.link_budget_reached {
+            "; link budget reached (--max-memory): coarser than the tolerance"
+        } else {
+            ""
+        }
     }
     fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
         (self.problem, RowCache::default())
@@ -479,5 +491,33 @@ mod tests {
             "error {coarse} at 0.02, {fine} at 0.002"
         );
         assert!(fine < 0.03, "error {fine} at 0.002");
+    }
+
+    /// A memory budget smaller than the tolerance needs: refinement stops at it (the rest
+    /// of the links kept coarser), the report says so, and the solve still converges to a
+    /// finite, non-negative answer.
+    #[test]
+    fn the_link_budget_holds() {
+        let budget_links = 20_000;
+        let config = SolverConfig {
+            element_size: Some(50.0),
+            row_cache_bytes: budget_links * std::mem::size_of::<Link>(),
+            ..SolverConfig::default()
+        };
+        let mut s = solver("cornell", config);
+        solve(&mut s, 1e-4);
+        assert!(s.report().contains("link budget reached"), "{}", s.report());
+        // Past the budget only forced splits (cluster receivers, overlapping nodes) remain,
+        // at most a few per node.
+        assert!(
+            s.link_count() <= budget_links + 4 * s.node_count(),
+            "{} links",
+            s.link_count()
+        );
+        assert!(
+            s.radiosity()
+                .iter()
+                .all(|b| b.is_finite() && b.min_element() >= 0.0)
+        );
     }
 }
