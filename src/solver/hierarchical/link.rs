@@ -18,7 +18,9 @@
 //! `B_j · bound_ij ≤ ε`, where `bound` is the unoccluded estimate, or where the estimate is
 //! unreliable (one node's bounding sphere crosses the other's plane, or the nodes are
 //! closer than their sizes) the cosine-free `A/(π r² + A)`; otherwise it splits the larger
-//! node (a cluster receiver always: clusters send but do not receive). Two leaves are
+//! node. A cluster receives through links that carry normal-incidence irradiance from the
+//! sender's direction, read per element by its normal ([`super::directional`]); the oracle
+//! charges those the harmonics' error and splits the receiver first. Two leaves are
 //! always linked. Known error: a kept link is off by at most about `ε` in radiosity per
 //! link times the number of links into a receiver, plus the visibility sampling error
 //! (±1/4 of a partly hidden link's transfer with 4 rays).
@@ -186,9 +188,7 @@ impl Linker<'_> {
             };
         }
         if ni.is_cluster() {
-            // A cluster's elements face every way: pushing one irradiance to all of them
-            // is wrong by about its own size, so clusters send but do not receive.
-            return Decision::SplitReceiver;
+            return self.decide_cluster_receiver(i, j, b_j, eps);
         }
         let d = nj.centroid - ni.centroid;
         let slack_i = PLANE_SLACK * ni.radius;
@@ -269,6 +269,57 @@ impl Linker<'_> {
             Decision::SplitReceiver
         } else {
             Decision::SplitSender
+        }
+    }
+
+    /// The oracle for a receiving cluster, whose links carry normal-incidence irradiance
+    /// from the sender's direction ([`super::directional`]): kept when the transfer times
+    /// the relative variation over the two nodes plus the harmonics' error is under `eps`
+    /// and the pair is not in penumbra.
+    fn decide_cluster_receiver(&self, i: u32, j: u32, b_j: f64, eps: f64) -> Decision {
+        let (ni, nj) = (self.node(i), self.node(j));
+        // Receivers first: a sender split first is paid again under every receiver child.
+        let split = Decision::SplitReceiver;
+        let d = nj.centroid - ni.centroid;
+        let dist = d.length();
+        if dist <= ni.radius + nj.radius || dist <= 0.0 {
+            return split;
+        }
+        let dir = d / dist;
+        let k = self.normal_incidence(ni.centroid, dir, nj);
+        if k <= 0.0 {
+            return Decision::Drop;
+        }
+        // An isotropic sender may be up to 4× brighter towards the receiver.
+        let kb = if nj.is_cluster() { 4.0 * k } else { k };
+        let variation = ((ni.radius + nj.radius) / dist + super::directional::SH_ERROR).min(1.0);
+        if b_j * kb * variation > eps {
+            return split;
+        }
+        let v = self.visibility(i, j);
+        let partial = v > 0.0 && v < 1.0;
+        if partial && b_j * kb > eps {
+            return split;
+        }
+        Decision::Accept {
+            kernel: k * v,
+            bound: kb * if partial { 1.0 } else { variation },
+        }
+    }
+
+    /// Normal-incidence kernel at `x` facing `dir` (towards the sender's centroid).
+    fn normal_incidence(&self, x: DVec3, dir: DVec3, nj: &Node) -> f64 {
+        if nj.is_leaf() {
+            let e = &self.mesh.elements[self.tree.order[nj.first as usize] as usize];
+            return contour::point_to_polygon_with_normal(x, dir, e.corners(), e.normal);
+        }
+        let r2 = (nj.centroid - x).length_squared();
+        if nj.is_cluster() {
+            let a = nj.area / 4.0;
+            a / (PI * r2 + a)
+        } else {
+            let cos_j = (-nj.normal.dot(dir)).max(0.0);
+            nj.area * cos_j / (PI * r2 + nj.area)
         }
     }
 

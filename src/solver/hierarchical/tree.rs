@@ -5,10 +5,10 @@
 //! (normals within [`PLANAR_COS`]): its tree splits the elements at the median of their
 //! centroids along the longest axis, two levels standing for one quadtree level of Hanrahan,
 //! Salzman & Aupperle (1991). Elements of a patch that is not planar (clustered facets of a
-//! curved model) are each a group of one. The groups are joined bottom-up by a median-split
+//! curved model) are each a group of one. The groups are joined top-down by a midpoint-split
 //! volume hierarchy (Smits, Arvo & Greenberg 1994; Sillion 1995): its inner nodes are
-//! *clusters*, which send as isotropic emitters and never receive (they are split first), so
-//! initial linking is one root-to-root link refined top-down, O(s log s) in the number of
+//! *clusters*, which send as isotropic emitters and receive a directional irradiance
+//! ([`super::directional`]), so initial linking is one root-to-root link refined top-down, O(s log s) in the number of
 //! groups instead of O(s²).
 //!
 //! Nodes are stored in pre-order (a parent before its children) and every node's elements
@@ -131,7 +131,7 @@ impl Hierarchy {
         (self.nodes.len() - 1) as u32
     }
 
-    /// A volume hierarchy over `ids` (groups), median split on the longest axis.
+    /// A volume hierarchy over `ids` (groups), split at the middle of the longest axis.
     fn build_clusters(
         &mut self,
         mesh: &Mesh,
@@ -146,11 +146,15 @@ impl Hierarchy {
         }
         let (lo, hi) = bounds(ids.iter().map(|&g| groups[g as usize].centroid));
         let axis = longest_axis(hi - lo);
-        let mid = ids.len() / 2;
-        ids.select_nth_unstable_by(mid, |a, b| {
-            let (ca, cb) = (groups[*a as usize].centroid, groups[*b as usize].centroid);
-            ca[axis].total_cmp(&cb[axis]).then(a.cmp(b))
-        });
+        // Spatial midpoint split (clusters are regions of space: a light far from an object
+        // must not share a cluster with half of it); the median if one side would be empty.
+        let middle = 0.5 * (lo[axis] + hi[axis]);
+        let key = |g: &u32| groups[*g as usize].centroid[axis];
+        ids.sort_unstable_by(|a, b| key(a).total_cmp(&key(b)).then(a.cmp(b)));
+        let mut mid = ids.partition_point(|g| key(g) < middle);
+        if mid == 0 || mid == ids.len() {
+            mid = ids.len() / 2;
+        }
         let first = self.order.len() as u32;
         let me = self.push(placeholder(first), parent);
         let (left, right) = ids.split_at_mut(mid);
