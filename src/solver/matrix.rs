@@ -316,12 +316,7 @@ impl<I: Iteration> Solver for MatrixSolver<I> {
             r_max = r_max.max(r.abs().max_element());
             rho_max = rho_max.max(m.reflectance.max_element());
         }
-        let bound = r_max / (1.0 - rho_max.min(crate::scene::MAX_REFLECTANCE));
-        let floor = super::error_floor(problem, &self.radiosity);
-        self.patch_b
-            .iter()
-            .map(|b| bound / b.min_element().max(floor))
-            .fold(0.0, f64::max)
+        super::residual_error_estimate(problem, &self.radiosity, &self.patch_b, r_max, rho_max)
     }
     fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
         (self.problem, self.matrix.cache)

@@ -394,6 +394,25 @@ pub fn run_solver(
     }
 }
 
+/// The Jacobi-style error estimate of the gathering solvers: with the largest residual
+/// `r_max` and reflectance `ρ_max`, the error `e = (I − ρF)⁻¹ r` is at most
+/// `r_max / (1 − ρ_max)` where the rows sum to at most 1; returned relative to the smallest
+/// channel of each of `values` (at least [`error_floor`] of `radiosity`), the largest.
+pub(crate) fn residual_error_estimate(
+    problem: &Problem,
+    radiosity: &[Rgb],
+    values: &[Rgb],
+    r_max: f64,
+    rho_max: f64,
+) -> f64 {
+    let bound = r_max / (1.0 - rho_max.min(crate::scene::MAX_REFLECTANCE));
+    let floor = error_floor(problem, radiosity);
+    values
+        .iter()
+        .map(|b| bound / b.min_element().max(floor))
+        .fold(0.0, f64::max)
+}
+
 /// The floor of relative error estimates: 1/1000 of the area-mean channel-mean radiosity.
 pub(crate) fn error_floor(problem: &Problem, radiosity: &[Rgb]) -> f64 {
     let mut sum = 0.0;

@@ -347,12 +347,13 @@ impl Solver for HierarchicalSolver {
             .iter()
             .map(|r| r.max_element())
             .fold(0.0, f64::max);
-        let bound = r_max / (1.0 - rho_max.min(crate::scene::MAX_REFLECTANCE));
-        let floor = super::error_floor(&self.problem, &self.radiosity);
-        self.radiosity
-            .iter()
-            .map(|b| bound / b.min_element().max(floor))
-            .fold(0.0, f64::max)
+        super::residual_error_estimate(
+            &self.problem,
+            &self.radiosity,
+            &self.radiosity,
+            r_max,
+            rho_max,
+        )
     }
     fn report(&self) -> String {
         format!(
