@@ -5,7 +5,9 @@
 //! estimated transfer `B_j · F_ij` is below a tolerance, so an `n`-element scene needs
 //! O(n) links instead of the n² (or patches × elements) of a full matrix. Clusters (Smits,
 //! Arvo & Greenberg 1994; Sillion 1995) put a volume hierarchy over the surfaces so that
-//! distant groups exchange light through one link. The hierarchy ([`tree`]) has the mesh's
+//! distant groups exchange light through one link; a receiving cluster keeps the light by
+//! direction and each element reads it at its own normal ([`directional`]). The hierarchy
+//! ([`tree`]) has the mesh's
 //! elements as leaves, so the display, the vertex interpolation and every comparison work
 //! on the same elements as the other solvers.
 //!
@@ -21,6 +23,10 @@
 //! constant elements. The residual reported is the change of the last iteration,
 //! `Σ|B_new − B_old| A / Σ|E| A` (the residual of the hierarchical system at the old
 //! solution), not the residual of the full-matrix system the other solvers report.
+//! Measured (docs/BENCHMARKS.md): the Cornell box at the default tolerance 2.95 % from the
+//! path-traced reference in 4.2 s (shooting 1.78 % in 6.7 s); at 104 k elements converged
+//! in 14 s where shooting has 35 % unshot after 60 s; slow on facet-heavy models (each
+//! facet gathers through hundreds of links).
 //!
 //! [`SolverConfig::link_tolerance`]: super::SolverConfig::link_tolerance
 
