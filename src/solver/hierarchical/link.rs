@@ -223,7 +223,13 @@ impl Linker<'_> {
         // The kernel the error is measured on, and the error of the estimate over it: the
         // spread over the receiver's points plus the sender's approximation (second order
         // in its size for the disc formula; first order, up to 4×, for an isotropic cluster).
-        let (kernel, variation) = if crosses_i || crosses_j || near {
+        let reliable = !(crosses_i || crosses_j || near);
+        // Nothing passes where the estimate says so and can be trusted (or cannot be
+        // refined further): no link, and no shadow rays spent on one.
+        if unoccluded <= 0.0 && (reliable || both_leaves) {
+            return Decision::Drop;
+        }
+        let (kernel, variation) = if !reliable {
             (unoccluded.max(sender_area / (PI * r2 + sender_area)), 1.0)
         } else {
             let size = nj.radius * nj.radius / r2;
@@ -245,8 +251,8 @@ impl Linker<'_> {
                 bound: kernel * if partial { 1.0 } else { variation },
             }
         };
-        if both_leaves || unoccluded <= 0.0 && kernel <= 0.0 {
-            return accept(if unoccluded > 0.0 { None } else { Some(0.0) });
+        if both_leaves {
+            return accept(None);
         }
         if b_j * kernel <= eps {
             return accept(None);
