@@ -425,11 +425,17 @@ fn render(args: &RenderArgs) -> Result<()> {
     }
     let solve_seconds = solve_start.elapsed().as_secs_f64();
 
-    let render_start = Instant::now();
-    let problem = solver.problem();
+    // What the summary needs from the solver, then the solver's working memory (links,
+    // rows, hierarchy) goes before the render builds its own.
     let radiance = solver.element_radiance(!args.no_ambient);
+    let (steps, residual, name) = (solver.steps(), solver.residual(), solver.name());
+    let (report, matrix_bytes) = (solver.report(), solver.matrix_bytes());
+    let (problem, rows) = solver.into_parts();
+    drop(rows);
+
+    let render_start = Instant::now();
     let image = if direct_pass {
-        render::direct::render_solution(problem, &radiance, &settings)
+        render::direct::render_solution(&problem, &radiance, &settings)
     } else {
         let vertex: Vec<_> = problem.mesh.vertex_values(&radiance);
         let bvh = render::display_bvh(&problem.scene, &problem.mesh);
@@ -459,9 +465,8 @@ fn render(args: &RenderArgs) -> Result<()> {
     if let Some(p) = &args.elements_csv {
         let mut w = create(p)?;
         writeln!(w, "patch,area,cx,cy,cz,r,g,b")?;
-        let radiance = solver.element_radiance(!args.no_ambient);
-        for (e, b) in solver.problem().mesh.elements.iter().zip(&radiance) {
-            let patch = solver.problem().mesh.patch(e.patch);
+        for (e, b) in problem.mesh.elements.iter().zip(&radiance) {
+            let patch = problem.mesh.patch(e.patch);
             let c = e.centroid;
             writeln!(
                 w,
@@ -472,25 +477,25 @@ fn render(args: &RenderArgs) -> Result<()> {
         w.flush()?;
     }
     let summary = serde_json::json!({
-        "elements": solver.problem().mesh.elements.len(),
-        "patches": solver.problem().mesh.patches.len(),
-        "faces": solver.problem().scene.faces.len(),
-        "element_size": solver.problem().mesh.element_size,
-        "patch_size": solver.problem().mesh.patch_size,
+        "elements": problem.mesh.elements.len(),
+        "patches": problem.mesh.patches.len(),
+        "faces": problem.scene.faces.len(),
+        "element_size": problem.mesh.element_size,
+        "patch_size": problem.mesh.patch_size,
         "camera": [
             settings.camera.eye.x, settings.camera.eye.y, settings.camera.eye.z,
             settings.camera.target.x, settings.camera.target.y, settings.camera.target.z,
             settings.camera.vfov_deg
         ],
-        "vertices": solver.problem().mesh.vertices.len(),
-        "shots": solver.steps(),
-        "solver": solver.name(),
-        "solver_report": solver.report(),
-        "matrix_bytes": solver.matrix_bytes(),
+        "vertices": problem.mesh.vertices.len(),
+        "shots": steps,
+        "solver": name,
+        "solver_report": report,
+        "matrix_bytes": matrix_bytes,
         "solve_seconds": solve_seconds,
         "render_seconds": render_seconds,
         "total_seconds": process_start.elapsed().as_secs_f64(),
-        "unshot_fraction": solver.residual(),
+        "unshot_fraction": residual,
         "error": error,
         "method": method.name(),
         "rasteriser": adapter,
@@ -500,9 +505,9 @@ fn render(args: &RenderArgs) -> Result<()> {
     } else if !args.quiet {
         eprintln!(
             "{} elements, {} shots, unshot {:.2e}, solve {:.3} s, render {:.3} s{}; wrote {}",
-            solver.problem().mesh.elements.len(),
-            solver.steps(),
-            solver.residual(),
+            problem.mesh.elements.len(),
+            steps,
+            residual,
             solve_seconds,
             render_seconds,
             error
@@ -510,9 +515,8 @@ fn render(args: &RenderArgs) -> Result<()> {
                 .unwrap_or_default(),
             args.out.display()
         );
-        let report = solver.report();
         if !report.is_empty() {
-            eprintln!("{}: {report}", solver.name());
+            eprintln!("{name}: {report}");
         }
     }
     Ok(())

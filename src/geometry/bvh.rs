@@ -110,25 +110,27 @@ impl Bvh {
                 1.0,
             )
         };
-        let local: Vec<[DVec3; 3]> = input
-            .iter()
-            .map(|t| t.vertices.map(|v| (v - origin) / scale))
-            .collect();
+        // Normalised on the fly (not kept per triangle): the build's memory is what a
+        // million-element render peaks at.
+        let local = |t: &TriangleInput| t.vertices.map(|v| (v - origin) / scale);
         let mut boxes = Vec::with_capacity(n);
         let mut centers = Vec::with_capacity(n);
-        for v in &local {
+        for t in input {
+            let v = local(t);
             let b = Aabb::from_points(v.iter());
             centers.push(b.center());
             boxes.push(b);
         }
         let mut idx: Vec<u32> = (0..n as u32).collect();
-        let mut nodes = Vec::with_capacity(2 * n);
+        let mut nodes = Vec::with_capacity(n);
         build_rec(&mut nodes, &mut idx, 0, n, &boxes, &centers);
+        drop((boxes, centers));
+        nodes.shrink_to_fit();
         let tris = idx
             .iter()
             .map(|&i| {
                 let t = &input[i as usize];
-                let v = &local[i as usize];
+                let v = local(t);
                 let v0 = v[0].as_vec3();
                 Tri {
                     v0,

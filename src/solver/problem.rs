@@ -84,6 +84,15 @@ impl Problem {
             .collect()
     }
 
+    /// Reflectance of each patch's material.
+    pub fn patch_reflectance(&self) -> Vec<Rgb> {
+        self.mesh
+            .patches
+            .iter()
+            .map(|q| self.scene.materials[q.material.0 as usize].reflectance)
+            .collect()
+    }
+
     /// Emission of each element's material: the radiosity of a dark start.
     pub fn element_emission(&self) -> Vec<Rgb> {
         self.mesh

@@ -57,6 +57,9 @@ const RECEIVER_POINTS: u32 = 4;
 /// Slack for planes of groups whose elements are within `PLANAR_COS` of each other.
 const PLANE_SLACK: f64 = 0.05;
 
+/// Pairs decided at once in [`Linker::refine`] (bounds the pairs held waiting).
+const FRONTIER_BATCH: usize = 1 << 18;
+
 /// A receiver and a sender node.
 type Pair = (u32, u32);
 
@@ -81,11 +84,27 @@ pub struct Linker<'a> {
     pub tree: &'a Hierarchy,
     pub epsilon: f64,
     pub seed: u64,
+    /// Receivers smaller than this get a threshold raised by `reference_area / area`
+    /// (see [`Linker::receiver_eps`]).
+    pub reference_area: f64,
 }
 
 impl Linker<'_> {
     fn node(&self, i: u32) -> &Node {
         &self.tree.nodes[i as usize]
+    }
+
+    /// The threshold for receiver `i`: `eps` in radiosity for receivers of at least the
+    /// reference area, and a fixed power error `eps × reference_area` below it (Hanrahan et
+    /// al.'s minimum area Aε made gradual, as in "BFA" refinement): past that size a
+    /// receiver's error weighs less in the power and image error than its links cost.
+    fn receiver_eps(&self, i: u32, eps: f64) -> f64 {
+        let area = self.node(i).area;
+        if area > 0.0 && area < self.reference_area {
+            eps * (self.reference_area / area)
+        } else {
+            eps
+        }
     }
 
     /// Links covering the pairs `(receiver, sender)` of `frontier`, each refined until it
@@ -96,7 +115,7 @@ impl Linker<'_> {
     /// the flag says so. `None` if `cancel` was set.
     pub fn refine(
         &self,
-        mut frontier: Vec<(u32, u32)>,
+        frontier: Vec<(u32, u32)>,
         b: &[Rgb],
         eps: f64,
         max_links: usize,
@@ -104,13 +123,25 @@ impl Linker<'_> {
     ) -> Option<(Vec<Link>, bool)> {
         let mut links = Vec::new();
         let mut capped = false;
-        while !frontier.is_empty() {
+        // Pairs still to decide, in batches of at most `FRONTIER_BATCH`: the newest batch
+        // first, so the pairs waiting stay few (memory) while each batch runs in parallel.
+        let mut pending = 0usize;
+        let mut stack = Vec::new();
+        if !frontier.is_empty() {
+            pending = frontier.len();
+            stack.push(frontier);
+        }
+        while let Some(mut batch) = stack.pop() {
             if cancel.load(Ordering::Relaxed) {
                 return None;
             }
-            capped |= links.len() + 2 * frontier.len() > max_links;
+            if batch.len() > FRONTIER_BATCH {
+                stack.push(batch.split_off(FRONTIER_BATCH));
+            }
+            pending -= batch.len();
+            capped |= links.len() + 2 * (batch.len() + pending) > max_links;
             let eps = if capped { f64::INFINITY } else { eps };
-            let parts: Vec<(Vec<Link>, Vec<Pair>)> = frontier
+            let parts: Vec<(Vec<Link>, Vec<Pair>)> = batch
                 .par_chunks(256)
                 .map(|chunk| {
                     let mut kept = Vec::new();
@@ -121,10 +152,15 @@ impl Linker<'_> {
                     (kept, next)
                 })
                 .collect();
-            frontier = Vec::with_capacity(parts.iter().map(|p| p.1.len()).sum());
-            for (kept, next) in parts {
+            drop(batch);
+            let mut next = Vec::with_capacity(parts.iter().map(|p| p.1.len()).sum());
+            for (kept, pairs) in parts {
                 links.extend(kept);
-                frontier.extend(next);
+                next.extend(pairs);
+            }
+            if !next.is_empty() {
+                pending += next.len();
+                stack.push(next);
             }
         }
         Some((links, capped))
@@ -168,11 +204,12 @@ impl Linker<'_> {
 
     /// Whether a kept link should now be split, given the sender's radiosity.
     pub fn needs_split(&self, link: &Link, b_sender: f64, eps: f64) -> bool {
-        b_sender * link.bound as f64 > eps
+        b_sender * link.bound as f64 > self.receiver_eps(link.receiver, eps)
             && !(self.node(link.receiver).is_leaf() && self.node(link.sender).is_leaf())
     }
 
     fn decide(&self, i: u32, j: u32, b_j: f64, eps: f64) -> Decision {
+        let eps = self.receiver_eps(i, eps);
         let (ni, nj) = (self.node(i), self.node(j));
         if ni.overlaps(nj) {
             return if i == j {

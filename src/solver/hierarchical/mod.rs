@@ -43,17 +43,26 @@ use crate::scene::{MaterialId, Rgb};
 use link::{Link, Linker};
 use tree::{Hierarchy, NONE};
 
+/// Receivers smaller than the scene's area over this many get a threshold that grows as
+/// they shrink (`link::Linker::receiver_eps`), so that the links stop growing with the
+/// element count past about this many elements.
+pub const REFERENCE_RECEIVERS: f64 = 16384.0;
+
 pub struct HierarchicalSolver {
     problem: Problem,
     tree: Hierarchy,
     /// Sorted by receiver (then sender); `link_start[i]..link_start[i + 1]` are node `i`'s.
     links: Vec<Link>,
     link_start: Vec<u32>,
+    /// The cluster nodes (pre-order) and each node's index among them ([`NONE`] if planar).
+    clusters: Vec<u32>,
+    cluster_slot: Vec<u32>,
     /// Radiosity per node (area average of its elements).
     node_b: Vec<Rgb>,
     radiosity: Vec<Rgb>,
     /// Last iteration's change per element (the residual).
     change: Vec<Rgb>,
+    /// Per patch (an element's are its patch's).
     emission: Vec<Rgb>,
     reflectance: Vec<Rgb>,
     emitted: f64,
@@ -71,11 +80,20 @@ pub struct HierarchicalSolver {
 impl HierarchicalSolver {
     pub fn new(problem: Problem) -> Self {
         let tree = Hierarchy::build(&problem.mesh);
+        let clusters: Vec<u32> = (0..tree.nodes.len() as u32)
+            .filter(|&n| tree.nodes[n as usize].is_cluster())
+            .collect();
+        let mut cluster_slot = vec![NONE; tree.nodes.len()];
+        for (k, &n) in clusters.iter().enumerate() {
+            cluster_slot[n as usize] = k as u32;
+        }
         let mut s = Self {
             problem,
             tree,
             links: Vec::new(),
             link_start: Vec::new(),
+            clusters,
+            cluster_slot,
             node_b: Vec::new(),
             radiosity: Vec::new(),
             change: Vec::new(),
@@ -110,8 +128,8 @@ impl HierarchicalSolver {
     fn threshold(&self) -> f64 {
         let mesh = &self.problem.mesh;
         let (mut sum, mut area) = (0.0, 0.0);
-        for (e, em) in mesh.elements.iter().zip(&self.emission) {
-            sum += em.max_element() * e.area;
+        for e in &mesh.elements {
+            sum += self.emission[e.patch.0 as usize].max_element() * e.area;
             area += e.area;
         }
         self.problem.config.link_tolerance * sum / area.max(f64::MIN_POSITIVE)
@@ -129,32 +147,56 @@ impl HierarchicalSolver {
             tree: &self.tree,
             epsilon: self.problem.epsilon,
             seed: self.problem.config.formfactor.seed,
+            reference_area: self.tree.nodes[root as usize].area / REFERENCE_RECEIVERS,
         };
-        let (frontier, kept): (Vec<(u32, u32)>, Vec<Link>) =
-            if self.steps == 0 && self.links.is_empty() {
+        // The links to split become the frontier; the rest stay where they are.
+        let mut links = std::mem::take(&mut self.links);
+        let (frontier, removed): (Vec<(u32, u32)>, Vec<Link>) =
+            if self.steps == 0 && links.is_empty() {
                 (vec![(root, root)], Vec::new())
             } else {
                 let b = &self.node_b;
-                let (split, kept): (Vec<Link>, Vec<Link>) = self
-                    .links
+                let split: Vec<bool> = links
                     .par_iter()
-                    .partition(|l| linker.needs_split(l, b[l.sender as usize].max_element(), eps));
-                (split.iter().map(|l| (l.receiver, l.sender)).collect(), kept)
+                    .map(|l| linker.needs_split(l, b[l.sender as usize].max_element(), eps))
+                    .collect();
+                let removed: Vec<Link> = links
+                    .iter()
+                    .zip(&split)
+                    .filter(|(_, s)| **s)
+                    .map(|(l, _)| *l)
+                    .collect();
+                let mut k = 0;
+                links.retain(|_| {
+                    k += 1;
+                    !split[k - 1]
+                });
+                (
+                    removed.iter().map(|l| (l.receiver, l.sender)).collect(),
+                    removed,
+                )
             };
         if frontier.is_empty() {
+            self.links = links;
             return true;
         }
         let budget = self.problem.config.row_cache_bytes / std::mem::size_of::<Link>();
-        let max_links = budget.saturating_sub(kept.len());
+        let max_links = budget.saturating_sub(links.len());
         let Some((new_links, capped)) =
             linker.refine(frontier, &self.node_b, eps, max_links, cancel)
         else {
+            // Cancelled: the links as they were (sorted again, `link_start` still fits).
+            links.extend(removed);
+            links.par_sort_unstable_by_key(|l| (l.receiver, l.sender));
+            self.links = links;
             return false;
         };
+        drop(removed);
         self.link_budget_reached |= capped;
         self.links_made += new_links.len();
-        let mut links = kept;
+        links.reserve_exact(new_links.len());
         links.extend(new_links);
+        links.shrink_to_fit();
         links.par_sort_unstable_by_key(|l| (l.receiver, l.sender));
         let mut start = vec![0u32; self.tree.nodes.len() + 1];
         for l in &links {
@@ -175,56 +217,61 @@ impl HierarchicalSolver {
         let b = &self.node_b;
         let nodes = &self.tree.nodes;
         // Planar receivers gather a scalar; clusters a directional irradiance.
-        let gathered: Vec<(Rgb, Option<directional::Sh9>)> = (0..nodes.len())
+        let mut down: Vec<Rgb> = (0..nodes.len())
             .into_par_iter()
             .map(|i| {
-                let mine = &links[start[i] as usize..start[i + 1] as usize];
-                if !nodes[i].is_cluster() {
-                    let h = mine
-                        .iter()
-                        .map(|l| b[l.sender as usize] * l.kernel as f64)
-                        .sum();
-                    return (h, None);
+                if nodes[i].is_cluster() {
+                    return Rgb::ZERO;
                 }
-                if mine.is_empty() {
-                    return (Rgb::ZERO, None);
-                }
+                links[start[i] as usize..start[i + 1] as usize]
+                    .iter()
+                    .map(|l| b[l.sender as usize] * l.kernel as f64)
+                    .sum()
+            })
+            .collect();
+        let clusters = &self.clusters;
+        let mut sh: Vec<directional::Sh9> = clusters
+            .par_iter()
+            .map(|&i| {
+                let i = i as usize;
                 let mut sh = [Rgb::ZERO; 9];
-                for l in mine {
+                for l in &links[start[i] as usize..start[i + 1] as usize] {
                     let d = (nodes[l.sender as usize].centroid - nodes[i].centroid)
                         .try_normalize()
                         .unwrap_or(glam::DVec3::Z);
                     directional::add(&mut sh, d, b[l.sender as usize] * l.kernel as f64);
                 }
-                (Rgb::ZERO, Some(sh))
+                sh
             })
             .collect();
-        // Push: accumulated irradiance, parents first (pre-order).
-        let mut down: Vec<Rgb> = gathered.iter().map(|g| g.0).collect();
-        let mut sh_down: Vec<Option<directional::Sh9>> =
-            gathered.into_iter().map(|g| g.1).collect();
+        // Push: accumulated irradiance, parents first (pre-order). A cluster's harmonics
+        // add up down the cluster levels and are read once at each planar group's normal
+        // (its elements' normals agree within `tree::PLANAR_COS`).
+        let slot = &self.cluster_slot;
         for n in 0..down.len() {
             let p = self.tree.parent[n];
-            if p != NONE {
-                down[n] = down[n] + down[p as usize];
-                if let Some(parent) = sh_down[p as usize] {
-                    let own = sh_down[n].get_or_insert([Rgb::ZERO; 9]);
-                    for (a, b) in own.iter_mut().zip(parent) {
-                        *a += b;
-                    }
-                }
+            if p == NONE {
+                continue;
             }
-        }
-        for (e, el) in self.problem.mesh.elements.iter().enumerate() {
-            let leaf = self.tree.leaf[e] as usize;
-            if let Some(sh) = &sh_down[leaf] {
-                down[leaf] += directional::irradiance(sh, el.normal);
+            let p = p as usize;
+            down[n] = down[n] + down[p];
+            if slot[p] == NONE {
+                continue;
+            }
+            let parent_sh = sh[slot[p] as usize];
+            if slot[n] != NONE {
+                for (a, b) in sh[slot[n] as usize].iter_mut().zip(parent_sh) {
+                    *a += b;
+                }
+            } else {
+                down[n] += directional::irradiance(&parent_sh, nodes[n].normal);
             }
         }
         let mut residual = 0.0;
         for (e, el) in self.problem.mesh.elements.iter().enumerate() {
             let leaf = self.tree.leaf[e] as usize;
-            let new = self.emission[e] + self.reflectance[e] * down[leaf];
+            let p = el.patch.0 as usize;
+            let new = self.emission[p] + self.reflectance[p] * down[leaf];
             debug_assert!(new.is_finite());
             self.change[e] = new - self.radiosity[e];
             residual += channel_sum(self.change[e]) * el.area;
@@ -261,6 +308,8 @@ impl HierarchicalSolver {
             + self.link_start.len() * 4
             + self.tree.bytes()
             + self.node_b.len() * 24
+            + self.cluster_slot.len() * 4
+            + self.clusters.len() * (4 + std::mem::size_of::<directional::Sh9>())
     }
 }
 
@@ -314,8 +363,8 @@ impl Solver for HierarchicalSolver {
     ) -> Result<(), SolverError> {
         self.problem
             .set_material(id.0 as usize, reflectance, emission)?;
-        self.emission = self.problem.element_emission();
-        self.reflectance = self.problem.element_reflectance();
+        self.emission = self.problem.patch_emission();
+        self.reflectance = self.problem.patch_reflectance();
         self.emitted = self.problem.emitted_power();
         self.residual = if self.emitted > 0.0 { 1.0 } else { 0.0 };
         self.residual_at_refine = f64::INFINITY;
@@ -323,9 +372,9 @@ impl Solver for HierarchicalSolver {
     }
     /// Back to the emission alone; the links are kept.
     fn reset(&mut self) {
-        self.emission = self.problem.element_emission();
-        self.reflectance = self.problem.element_reflectance();
-        self.radiosity = self.emission.clone();
+        self.emission = self.problem.patch_emission();
+        self.reflectance = self.problem.patch_reflectance();
+        self.radiosity = self.problem.element_emission();
         self.change = vec![Rgb::ZERO; self.radiosity.len()];
         self.emitted = self.problem.emitted_power();
         self.residual = if self.emitted > 0.0 { 1.0 } else { 0.0 };
