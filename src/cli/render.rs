@@ -65,7 +65,7 @@ pub struct RenderArgs {
     /// where the unshot light can reach, default) or `global` (the classic uniform term).
     #[arg(long, default_value = "regional")]
     pub ambient: String,
-    /// BF refinement threshold of `--solver hierarchical`, relative to the scene's mean
+    /// BF refinement threshold of `--solver hierarchical` and `wavelet`, relative to the scene's mean
     /// emitted radiosity: smaller gives more links, a finer answer and a longer solve.
     #[arg(long, allow_negative_numbers = true)]
     pub link_tolerance: Option<f64>,
@@ -299,9 +299,9 @@ fn render(args: &RenderArgs) -> Result<()> {
         if !(t.is_finite() && t > 0.0) {
             bail!("--link-tolerance must be a positive number, got {t}");
         }
-        if kind != SolverKind::Hierarchical {
+        if !matches!(kind, SolverKind::Hierarchical | SolverKind::Wavelet) {
             bail!(
-                "--link-tolerance is the refinement threshold of --solver hierarchical; it does nothing for --solver {}",
+                "--link-tolerance is the refinement threshold of --solver hierarchical and wavelet; it does nothing for --solver {}",
                 kind.name()
             );
         }

@@ -191,6 +191,8 @@ pub enum SolverKind {
     Cg,
     /// Hierarchical radiosity with clustering ([`hierarchical`]).
     Hierarchical,
+    /// Wavelet radiosity with flatlets F2 ([`hierarchical::flatlet`]).
+    Wavelet,
 }
 
 impl SolverKind {
@@ -202,6 +204,7 @@ impl SolverKind {
         "sor",
         "cg",
         "hierarchical",
+        "wavelet",
     ];
 
     /// Parses a `--solver` name; `omega` applies to `sor`.
@@ -213,6 +216,7 @@ impl SolverKind {
             "sor" => SolverKind::Sor(omega),
             "cg" => SolverKind::Cg,
             "hierarchical" | "hr" => SolverKind::Hierarchical,
+            "wavelet" | "flatlet" => SolverKind::Wavelet,
             _ => return None,
         })
     }
@@ -226,6 +230,7 @@ impl SolverKind {
             SolverKind::Sor(_) => "sor",
             SolverKind::Cg => "cg",
             SolverKind::Hierarchical => "hierarchical",
+            SolverKind::Wavelet => "wavelet",
         }
     }
 
@@ -233,7 +238,7 @@ impl SolverKind {
     /// the memory budget), without taking it.
     pub fn check(self, problem: &Problem) -> Result<(), SolverError> {
         match self {
-            SolverKind::Shooting | SolverKind::Hierarchical => Ok(()),
+            SolverKind::Shooting | SolverKind::Hierarchical | SolverKind::Wavelet => Ok(()),
             SolverKind::Sor(omega) => {
                 gathering::check_omega(GatherMethod::Sor(omega))?;
                 matrix::PatchMatrix::check(problem, self.name())
@@ -275,6 +280,10 @@ impl SolverKind {
             SolverKind::Cg => Box::new(CgSolver::with_rows(problem, rows)?),
             // Links, not rows: cached rows are dropped.
             SolverKind::Hierarchical => Box::new(HierarchicalSolver::new(problem)),
+            SolverKind::Wavelet => Box::new(HierarchicalSolver::with_basis(
+                problem,
+                hierarchical::Basis::Flatlet,
+            )),
         })
     }
 }
@@ -282,7 +291,7 @@ impl SolverKind {
 /// One solver of the radiosity system. A *step* is a solver's unit of work: a shot, a
 /// form-factor row while a matrix is being built, or a sweep.
 pub trait Solver: Send {
-    /// `shooting`, `jacobi`, `gauss-seidel`, `sor`, `cg` or `hierarchical`.
+    /// `shooting`, `jacobi`, `gauss-seidel`, `sor`, `cg`, `hierarchical` or `wavelet`.
     fn name(&self) -> &'static str;
     fn problem(&self) -> &Problem;
     /// One step. `false` when there is nothing left to do or `cancel` was set.

@@ -31,6 +31,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::flatlet::{BlockDecision, BlockLink};
 use super::tree::{Hierarchy, Node};
 use crate::formfactor::contour;
 use crate::geometry::sampling::{hash_seed, triangle_point};
@@ -57,6 +58,9 @@ const RECEIVER_POINTS: u32 = 4;
 /// Slack for planes of groups whose elements are within `PLANAR_COS` of each other.
 const PLANE_SLACK: f64 = 0.05;
 
+/// A flatlet block's memory in scalar links (for the link budget).
+const BLOCK_COST: usize = std::mem::size_of::<BlockLink>() / std::mem::size_of::<Link>() + 1;
+
 /// Pairs decided at once in [`Linker::refine`] (bounds the pairs held waiting).
 const FRONTIER_BATCH: usize = 1 << 18;
 
@@ -64,7 +68,7 @@ const FRONTIER_BATCH: usize = 1 << 18;
 type Pair = (u32, u32);
 
 /// What the oracle decided for a pair.
-enum Decision {
+pub(super) enum Decision {
     /// No light can pass (same plane, or behind): no link.
     Drop,
     /// Keep the link (kernel with visibility, the oracle's bound per unit radiosity).
@@ -87,6 +91,8 @@ pub struct Linker<'a> {
     /// Receivers smaller than this get a threshold raised by `reference_area / area`
     /// (see [`Linker::receiver_eps`]).
     pub reference_area: f64,
+    /// Planar pairs linked by flatlet blocks ([`super::flatlet`]) instead of scalar links.
+    pub flatlets: bool,
 }
 
 impl Linker<'_> {
@@ -98,7 +104,7 @@ impl Linker<'_> {
     /// reference area, and a fixed power error `eps × reference_area` below it (Hanrahan et
     /// al.'s minimum area Aε made gradual, as in "BFA" refinement): past that size a
     /// receiver's error weighs less in the power and image error than its links cost.
-    fn receiver_eps(&self, i: u32, eps: f64) -> f64 {
+    pub(super) fn receiver_eps(&self, i: u32, eps: f64) -> f64 {
         let area = self.node(i).area;
         if area > 0.0 && area < self.reference_area {
             eps * (self.reference_area / area)
@@ -120,8 +126,9 @@ impl Linker<'_> {
         eps: f64,
         max_links: usize,
         cancel: &AtomicBool,
-    ) -> Option<(Vec<Link>, bool)> {
+    ) -> Option<(Vec<Link>, Vec<BlockLink>, bool)> {
         let mut links = Vec::new();
+        let mut blocks = Vec::new();
         let mut capped = false;
         // Pairs still to decide, in batches of at most `FRONTIER_BATCH`: the newest batch
         // first, so the pairs waiting stay few (memory) while each batch runs in parallel.
@@ -139,23 +146,26 @@ impl Linker<'_> {
                 stack.push(batch.split_off(FRONTIER_BATCH));
             }
             pending -= batch.len();
-            capped |= links.len() + 2 * (batch.len() + pending) > max_links;
+            capped |=
+                links.len() + BLOCK_COST * blocks.len() + 2 * (batch.len() + pending) > max_links;
             let eps = if capped { f64::INFINITY } else { eps };
-            let parts: Vec<(Vec<Link>, Vec<Pair>)> = batch
+            let parts: Vec<(Vec<Link>, Vec<BlockLink>, Vec<Pair>)> = batch
                 .par_chunks(256)
                 .map(|chunk| {
                     let mut kept = Vec::new();
+                    let mut kept_blocks = Vec::new();
                     let mut next = Vec::new();
                     for &(i, j) in chunk {
-                        self.expand(i, j, b, eps, &mut kept, &mut next);
+                        self.expand(i, j, b, eps, &mut kept, &mut kept_blocks, &mut next);
                     }
-                    (kept, next)
+                    (kept, kept_blocks, next)
                 })
                 .collect();
             drop(batch);
-            let mut next = Vec::with_capacity(parts.iter().map(|p| p.1.len()).sum());
-            for (kept, pairs) in parts {
+            let mut next = Vec::with_capacity(parts.iter().map(|p| p.2.len()).sum());
+            for (kept, kept_blocks, pairs) in parts {
                 links.extend(kept);
+                blocks.extend(kept_blocks);
                 next.extend(pairs);
             }
             if !next.is_empty() {
@@ -163,7 +173,7 @@ impl Linker<'_> {
                 stack.push(next);
             }
         }
-        Some((links, capped))
+        Some((links, blocks, capped))
     }
 
     /// One decision on the pair `i ← j`: a kept link into `kept`, or child pairs into `next`.
@@ -174,11 +184,26 @@ impl Linker<'_> {
         b: &[Rgb],
         eps: f64,
         kept: &mut Vec<Link>,
+        kept_blocks: &mut Vec<BlockLink>,
         next: &mut Vec<(u32, u32)>,
     ) {
-        let ci = self.node(i).children;
-        let cj = self.node(j).children;
-        match self.decide(i, j, b[j as usize].max_element(), eps) {
+        let (ni, nj) = (self.node(i), self.node(j));
+        let ci = ni.children;
+        let cj = nj.children;
+        let planar_pair = !ni.is_cluster() && !nj.is_cluster() && !ni.overlaps(nj);
+        let decision = if self.flatlets && planar_pair {
+            match self.decide_block(i, j, b, eps) {
+                BlockDecision::Drop => return,
+                BlockDecision::Keep(block) => {
+                    kept_blocks.push(block);
+                    return;
+                }
+                BlockDecision::Split(d) => d,
+            }
+        } else {
+            self.decide(i, j, b[j as usize].max_element(), eps)
+        };
+        match decision {
             Decision::Drop => {}
             Decision::Accept { kernel, bound } => {
                 if kernel > 0.0 || bound > 0.0 {
@@ -208,7 +233,7 @@ impl Linker<'_> {
             && !(self.node(link.receiver).is_leaf() && self.node(link.sender).is_leaf())
     }
 
-    fn decide(&self, i: u32, j: u32, b_j: f64, eps: f64) -> Decision {
+    pub(super) fn decide(&self, i: u32, j: u32, b_j: f64, eps: f64) -> Decision {
         let eps = self.receiver_eps(i, eps);
         let (ni, nj) = (self.node(i), self.node(j));
         if ni.overlaps(nj) {
@@ -301,6 +326,12 @@ impl Linker<'_> {
                 return accept(Some(v));
             }
         }
+        self.split_choice(i, j)
+    }
+
+    /// Which node of a pair that fails the oracle to split: the larger, never a leaf.
+    pub(super) fn split_choice(&self, i: u32, j: u32) -> Decision {
+        let (ni, nj) = (self.node(i), self.node(j));
         let split_receiver = if nj.is_leaf() {
             true
         } else if ni.is_leaf() {

@@ -31,6 +31,7 @@
 //! [`SolverConfig::link_tolerance`]: super::SolverConfig::link_tolerance
 
 pub mod directional;
+pub mod flatlet;
 pub mod link;
 pub mod tree;
 
@@ -40,6 +41,7 @@ use rayon::prelude::*;
 
 use super::{Problem, RowCache, Solver, SolverError, channel_sum};
 use crate::scene::{MaterialId, Rgb};
+use flatlet::BlockLink;
 use link::{Link, Linker};
 use tree::{Hierarchy, NONE};
 
@@ -48,8 +50,21 @@ use tree::{Hierarchy, NONE};
 /// element count past about this many elements.
 pub const REFERENCE_RECEIVERS: f64 = 16384.0;
 
+/// The basis radiosity is represented in over each node.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Basis {
+    /// Constant per node, scalar links: hierarchical radiosity (the Haar wavelet case).
+    Haar,
+    /// Flatlets F2: constant per piece, 4 × 4 blocks between planar nodes ([`flatlet`]).
+    Flatlet,
+}
+
 pub struct HierarchicalSolver {
     problem: Problem,
+    basis: Basis,
+    /// Flatlet blocks, sorted by receiver like `links` (empty for [`Basis::Haar`]).
+    blocks: Vec<BlockLink>,
+    block_start: Vec<u32>,
     tree: Hierarchy,
     /// Sorted by receiver (then sender); `link_start[i]..link_start[i + 1]` are node `i`'s.
     links: Vec<Link>,
@@ -79,6 +94,11 @@ pub struct HierarchicalSolver {
 
 impl HierarchicalSolver {
     pub fn new(problem: Problem) -> Self {
+        Self::with_basis(problem, Basis::Haar)
+    }
+
+    /// Wavelet radiosity in `basis` (hierarchical radiosity for [`Basis::Haar`]).
+    pub fn with_basis(problem: Problem, basis: Basis) -> Self {
         let tree = Hierarchy::build(&problem.mesh);
         let clusters: Vec<u32> = (0..tree.nodes.len() as u32)
             .filter(|&n| tree.nodes[n as usize].is_cluster())
@@ -89,6 +109,9 @@ impl HierarchicalSolver {
         }
         let mut s = Self {
             problem,
+            basis,
+            blocks: Vec::new(),
+            block_start: Vec::new(),
             tree,
             links: Vec::new(),
             link_start: Vec::new(),
@@ -114,6 +137,11 @@ impl HierarchicalSolver {
 
     pub fn link_count(&self) -> usize {
         self.links.len()
+    }
+
+    /// Flatlet blocks ([`Basis::Flatlet`]; none for Haar).
+    pub fn block_count(&self) -> usize {
+        self.blocks.len()
     }
 
     pub fn node_count(&self) -> usize {
@@ -148,66 +176,70 @@ impl HierarchicalSolver {
             epsilon: self.problem.epsilon,
             seed: self.problem.config.formfactor.seed,
             reference_area: self.tree.nodes[root as usize].area / REFERENCE_RECEIVERS,
+            flatlets: self.basis == Basis::Flatlet,
         };
         // The links to split become the frontier; the rest stay where they are.
         let mut links = std::mem::take(&mut self.links);
-        let (frontier, removed): (Vec<(u32, u32)>, Vec<Link>) =
-            if self.steps == 0 && links.is_empty() {
-                (vec![(root, root)], Vec::new())
-            } else {
-                let b = &self.node_b;
-                let split: Vec<bool> = links
-                    .par_iter()
-                    .map(|l| linker.needs_split(l, b[l.sender as usize].max_element(), eps))
-                    .collect();
-                let removed: Vec<Link> = links
-                    .iter()
-                    .zip(&split)
-                    .filter(|(_, s)| **s)
-                    .map(|(l, _)| *l)
-                    .collect();
-                let mut k = 0;
-                links.retain(|_| {
-                    k += 1;
-                    !split[k - 1]
-                });
-                (
-                    removed.iter().map(|l| (l.receiver, l.sender)).collect(),
-                    removed,
-                )
-            };
+        let mut blocks = std::mem::take(&mut self.blocks);
+        let first = self.steps == 0 && links.is_empty() && blocks.is_empty();
+        let (removed, removed_blocks) = if first {
+            (Vec::new(), Vec::new())
+        } else {
+            let b = &self.node_b;
+            (
+                take_where(&mut links, |l| {
+                    linker.needs_split(l, b[l.sender as usize].max_element(), eps)
+                }),
+                take_where(&mut blocks, |k| linker.block_needs_split(k, b, eps)),
+            )
+        };
+        let frontier: Vec<(u32, u32)> = if first {
+            vec![(root, root)]
+        } else {
+            let pairs = removed.iter().map(|l| (l.receiver, l.sender));
+            pairs
+                .chain(removed_blocks.iter().map(|k| (k.receiver, k.sender)))
+                .collect()
+        };
         if frontier.is_empty() {
             self.links = links;
+            self.blocks = blocks;
             return true;
         }
         let budget = self.problem.config.row_cache_bytes / std::mem::size_of::<Link>();
-        let max_links = budget.saturating_sub(links.len());
-        let Some((new_links, capped)) =
+        let held = links.len() + blocks.len() * std::mem::size_of::<BlockLink>() / 16;
+        let max_links = budget.saturating_sub(held);
+        let Some((new_links, new_blocks, capped)) =
             linker.refine(frontier, &self.node_b, eps, max_links, cancel)
         else {
-            // Cancelled: the links as they were (sorted again, `link_start` still fits).
+            // Cancelled: the links as they were.
             links.extend(removed);
-            links.par_sort_unstable_by_key(|l| (l.receiver, l.sender));
-            self.links = links;
+            blocks.extend(removed_blocks);
+            self.set_links(links, blocks);
             return false;
         };
-        drop(removed);
+        drop((removed, removed_blocks));
         self.link_budget_reached |= capped;
-        self.links_made += new_links.len();
+        self.links_made += new_links.len() + new_blocks.len();
         links.reserve_exact(new_links.len());
         links.extend(new_links);
-        links.shrink_to_fit();
-        links.par_sort_unstable_by_key(|l| (l.receiver, l.sender));
-        let mut start = vec![0u32; self.tree.nodes.len() + 1];
-        for l in &links {
-            start[l.receiver as usize + 1] += 1;
-        }
-        for k in 1..start.len() {
-            start[k] += start[k - 1];
-        }
-        self.links = links;
-        self.link_start = start;
+        blocks.reserve_exact(new_blocks.len());
+        blocks.extend(new_blocks);
+        self.set_links(links, blocks);
         true
+    }
+
+    /// Stores links and blocks sorted by receiver, with their start per node.
+    fn set_links(&mut self, mut links: Vec<Link>, mut blocks: Vec<BlockLink>) {
+        links.shrink_to_fit();
+        blocks.shrink_to_fit();
+        links.par_sort_unstable_by_key(|l| (l.receiver, l.sender));
+        blocks.par_sort_unstable_by_key(|l| (l.receiver, l.sender));
+        let n = self.tree.nodes.len();
+        self.link_start = starts(n, links.iter().map(|l| l.receiver));
+        self.block_start = starts(n, blocks.iter().map(|l| l.receiver));
+        self.links = links;
+        self.blocks = blocks;
     }
 
     /// Gather, push to the leaves, pull up; sets the residual.
@@ -229,6 +261,34 @@ impl HierarchicalSolver {
                     .sum()
             })
             .collect();
+        // Flatlet blocks deliver to their receiver's pieces.
+        if !self.blocks.is_empty() {
+            let blocks = &self.blocks;
+            let bs = &self.block_start;
+            let tree = &self.tree;
+            let pieces: Vec<([u32; flatlet::PIECES], usize, [Rgb; flatlet::PIECES])> = (0..nodes
+                .len())
+                .into_par_iter()
+                .filter(|&i| bs[i] < bs[i + 1])
+                .map(|i| {
+                    let mut total = [Rgb::ZERO; flatlet::PIECES];
+                    let mut ids = ([0u32; flatlet::PIECES], 0);
+                    for k in &blocks[bs[i] as usize..bs[i + 1] as usize] {
+                        let (p, n, g) = flatlet::block_gather(tree, k, b);
+                        ids = (p, n);
+                        for (t, g) in total.iter_mut().zip(g) {
+                            *t += g;
+                        }
+                    }
+                    (ids.0, ids.1, total)
+                })
+                .collect();
+            for (ids, n, g) in pieces {
+                for (&p, g) in ids[..n].iter().zip(g) {
+                    down[p as usize] += g;
+                }
+            }
+        }
         let clusters = &self.clusters;
         let mut sh: Vec<directional::Sh9> = clusters
             .par_iter()
@@ -306,6 +366,8 @@ impl HierarchicalSolver {
     pub fn bytes(&self) -> usize {
         self.links.capacity() * std::mem::size_of::<Link>()
             + self.link_start.len() * 4
+            + self.blocks.capacity() * std::mem::size_of::<BlockLink>()
+            + self.block_start.len() * 4
             + self.tree.bytes()
             + self.node_b.len() * 24
             + self.cluster_slot.len() * 4
@@ -313,9 +375,44 @@ impl HierarchicalSolver {
     }
 }
 
+/// Removes and returns the items for which `split` holds (evaluated in parallel).
+fn take_where<T: Copy + Send + Sync>(
+    items: &mut Vec<T>,
+    split: impl Fn(&T) -> bool + Sync,
+) -> Vec<T> {
+    let flags: Vec<bool> = items.par_iter().map(&split).collect();
+    let taken = items
+        .iter()
+        .zip(&flags)
+        .filter(|(_, f)| **f)
+        .map(|(x, _)| *x)
+        .collect();
+    let mut k = 0;
+    items.retain(|_| {
+        k += 1;
+        !flags[k - 1]
+    });
+    taken
+}
+
+/// `start[i]..start[i + 1]` = the range of node `i` in a list sorted by receiver.
+fn starts(nodes: usize, receivers: impl Iterator<Item = u32>) -> Vec<u32> {
+    let mut start = vec![0u32; nodes + 1];
+    for r in receivers {
+        start[r as usize + 1] += 1;
+    }
+    for k in 1..start.len() {
+        start[k] += start[k - 1];
+    }
+    start
+}
+
 impl Solver for HierarchicalSolver {
     fn name(&self) -> &'static str {
-        "hierarchical"
+        match self.basis {
+            Basis::Haar => "hierarchical",
+            Basis::Flatlet => "wavelet",
+        }
     }
     fn problem(&self) -> &Problem {
         &self.problem
@@ -411,20 +508,27 @@ impl Solver for HierarchicalSolver {
         )
     }
     fn report(&self) -> String {
-        format!(
-            "{} links ({} made), {} nodes ({} planar groups), {:.1} MB; refine {:.2} s, gather {:.2} s",
-            self.links.len(),
-            self.links_made,
-            self.tree.nodes.len(),
-            self.tree.planar_groups,
-            self.bytes() as f64 / 1e6,
-            self.refine_seconds,
-            self.gather_seconds
-        ) + if self.link_budget_reached {
-            "; link budget reached (--max-memory): coarser than the tolerance"
+        let blocks = if self.basis == Basis::Flatlet {
+            format!("{} flatlet blocks, ", self.blocks.len())
         } else {
-            ""
-        }
+            String::new()
+        };
+        blocks
+            + &format!(
+                "{} links ({} made), {} nodes ({} planar groups), {:.1} MB; refine {:.2} s, gather {:.2} s",
+                self.links.len(),
+                self.links_made,
+                self.tree.nodes.len(),
+                self.tree.planar_groups,
+                self.bytes() as f64 / 1e6,
+                self.refine_seconds,
+                self.gather_seconds
+            )
+            + if self.link_budget_reached {
+                "; link budget reached (--max-memory): coarser than the tolerance"
+            } else {
+                ""
+            }
     }
     fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
         (self.problem, RowCache::default())
@@ -432,241 +536,4 @@ impl Solver for HierarchicalSolver {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::scene::{LoadOptions, Scene};
-    use crate::solver::SolverConfig;
-    use glam::DVec3;
-
-    /// Σ of the kernels a leaf gathers through (its own links and its ancestors').
-    fn kernel_sums(s: &HierarchicalSolver) -> Vec<f64> {
-        let per_node: Vec<f64> = (0..s.tree.nodes.len())
-            .map(|i| {
-                s.links[s.link_start[i] as usize..s.link_start[i + 1] as usize]
-                    .iter()
-                    .map(|l| l.kernel as f64)
-                    .sum()
-            })
-            .collect();
-        let mut down = per_node;
-        for n in 0..down.len() {
-            let p = s.tree.parent[n];
-            if p != NONE {
-                down[n] += down[p as usize];
-            }
-        }
-        s.tree.leaf.iter().map(|&l| down[l as usize]).collect()
-    }
-
-    fn solver(builtin: &str, config: SolverConfig) -> HierarchicalSolver {
-        let scene = Scene::builtin(builtin, &LoadOptions::default()).expect("scene");
-        HierarchicalSolver::new(Problem::new(scene, config).expect("problem"))
-    }
-
-    fn solve(s: &mut HierarchicalSolver, residual: f64) {
-        let cancel = AtomicBool::new(false);
-        while s.residual() > residual && s.steps() < 200 {
-            assert!(s.step(&cancel), "stopped at residual {}", s.residual());
-        }
-    }
-
-    /// In a closed convex box every point sees the whole box: the kernels a leaf gathers
-    /// through must sum to 1, and each link's kernel must match the exact average, over the
-    /// receiver's elements, of Lambert's point-to-polygon value summed over the sender's
-    /// elements (an independent evaluation of the same integral). The oracle keeps each
-    /// link's error times the sender's radiosity under ε (= the tolerance here: emission 1
-    /// everywhere); it measures the spread from 4 points, so a few links may pass it.
-    /// A kernel bug (a missing cosine, the wrong node's area, a cluster at full area) moves
-    /// most links by far more.
-    #[test]
-    fn kernels_of_a_closed_box_match_the_exact_integral() {
-        let tolerance = 0.005;
-        let config = SolverConfig {
-            link_tolerance: tolerance,
-            ..SolverConfig::default()
-        };
-        let mut s = solver("furnace", config);
-        solve(&mut s, 1e-3);
-        let mesh = &s.problem.mesh;
-        let elements = |n: u32| {
-            let node = &s.tree.nodes[n as usize];
-            &s.tree.order[node.first as usize..(node.first + node.count) as usize]
-        };
-        let (mut outside, mut worst) = (0usize, 0.0f64);
-        // Links into clusters carry normal-incidence irradiance (tested below).
-        assert!(
-            s.links
-                .iter()
-                .all(|l| !s.tree.nodes[l.receiver as usize].is_cluster())
-        );
-        for l in &s.links {
-            let receivers = elements(l.receiver);
-            let mut exact = 0.0;
-            for &r in receivers {
-                let er = &mesh.elements[r as usize];
-                for &e in elements(l.sender) {
-                    let es = &mesh.elements[e as usize];
-                    exact += crate::formfactor::contour::point_to_polygon_with_normal(
-                        er.centroid,
-                        er.normal,
-                        es.corners(),
-                        es.normal,
-                    );
-                }
-            }
-            exact /= receivers.len() as f64;
-            let err = (l.kernel as f64 - exact).abs();
-            worst = worst.max(err);
-            outside += usize::from(err > tolerance);
-        }
-        eprintln!(
-            "{} of {} links outside, worst {worst}",
-            outside,
-            s.links.len()
-        );
-        assert!(
-            outside * 100 <= s.links.len(),
-            "{outside} of {} links off by more than {tolerance}",
-            s.links.len()
-        );
-        assert!(worst <= 4.0 * tolerance, "a link off by {worst}");
-        let sums = kernel_sums(&s);
-        let mean = sums.iter().sum::<f64>() / sums.len() as f64;
-        assert!((mean - 1.0).abs() < 0.01, "mean row sum {mean}");
-    }
-
-    /// On the same mesh, hierarchical radiosity approaches the full-matrix answer (shooting
-    /// to a residual of 1e-6) as the link tolerance falls: first order in the tolerance,
-    /// so a tolerance 10× smaller must at least halve the error.
-    #[test]
-    fn converges_to_the_full_solution_as_the_tolerance_falls() {
-        // Patches of one element: the full solution is the element-to-element system that
-        // the hierarchy's leaves approximate (larger patches shoot their average radiosity,
-        // a different discretisation, 1.7 % away on this mesh).
-        let base = SolverConfig {
-            element_size: Some(50.0),
-            patch_size: Some(50.0),
-            ..SolverConfig::default()
-        };
-        let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("scene");
-        let mut full = crate::solver::SolverKind::Shooting
-            .build(Problem::new(scene, base.clone()).expect("problem"))
-            .expect("shooting");
-        let cancel = AtomicBool::new(false);
-        while full.residual() > 1e-6 {
-            assert!(full.step(&cancel));
-        }
-        let mesh = &full.problem().mesh;
-        let error = |tolerance: f64| {
-            let mut s = solver(
-                "cornell",
-                SolverConfig {
-                    link_tolerance: tolerance,
-                    ..base.clone()
-                },
-            );
-            solve(&mut s, 1e-6);
-            let (mut diff, mut sum) = (0.0, 0.0);
-            for ((e, a), b) in mesh
-                .elements
-                .iter()
-                .zip(s.radiosity())
-                .zip(full.radiosity())
-            {
-                diff += channel_sum(*a - *b) * e.area;
-                sum += channel_sum(*b) * e.area;
-            }
-            diff / sum
-        };
-        let coarse = error(0.02);
-        let fine = error(0.002);
-        eprintln!("error {coarse} at 0.02, {fine} at 0.002");
-        assert!(
-            fine <= 0.5 * coarse,
-            "error {coarse} at 0.02, {fine} at 0.002"
-        );
-        assert!(fine < 0.03, "error {fine} at 0.002");
-    }
-
-    /// A memory budget smaller than the tolerance needs: refinement stops at it (the rest
-    /// of the links kept coarser), the report says so, and the solve still converges to a
-    /// finite, non-negative answer.
-    #[test]
-    fn the_link_budget_holds() {
-        let budget_links = 20_000;
-        let config = SolverConfig {
-            element_size: Some(50.0),
-            row_cache_bytes: budget_links * std::mem::size_of::<Link>(),
-            ..SolverConfig::default()
-        };
-        let mut s = solver("cornell", config);
-        solve(&mut s, 1e-4);
-        assert!(s.report().contains("link budget reached"), "{}", s.report());
-        // Past the budget only forced splits (cluster receivers, overlapping nodes) remain,
-        // at most a few per node.
-        assert!(
-            s.link_count() <= budget_links + 4 * s.node_count(),
-            "{} links",
-            s.link_count()
-        );
-        assert!(
-            s.radiosity()
-                .iter()
-                .all(|b| b.is_finite() && b.min_element() >= 0.0)
-        );
-    }
-
-    /// A small cube far from a square light is one cluster: it receives through links
-    /// carrying directional irradiance, and each face reads its own: the face towards the
-    /// light within the harmonics' error of Lambert's exact value, the face away nearly
-    /// dark, the sides in between (the light has no reflectance, so this is one bounce).
-    #[test]
-    fn a_distant_cluster_receives_by_direction() {
-        let obj = "mtllib m.mtl\nusemtl light\nv -0.5 -0.5 10\nv -0.5 0.5 10\nv 0.5 0.5 10\nv 0.5 -0.5 10\nf 1 2 3 4\nusemtl cube\nv -0.05 -0.05 -0.05\nv 0.05 -0.05 -0.05\nv 0.05 0.05 -0.05\nv -0.05 0.05 -0.05\nv -0.05 -0.05 0.05\nv 0.05 -0.05 0.05\nv 0.05 0.05 0.05\nv -0.05 0.05 0.05\nf 5 8 7 6\nf 9 10 11 12\nf 5 6 10 9\nf 8 12 11 7\nf 5 9 12 8\nf 6 7 11 10\n";
-        let mtl = "newmtl light\nKd 0 0 0\nKe 1 1 1\nnewmtl cube\nKd 0.5 0.5 0.5\n";
-        let scene = Scene::from_obj_str("c.obj", obj, &[("m.mtl", mtl)], &LoadOptions::default())
-            .expect("scene");
-        let config = SolverConfig {
-            element_size: Some(0.05),
-            link_tolerance: 0.01,
-            ..SolverConfig::default()
-        };
-        let mut s = HierarchicalSolver::new(Problem::new(scene, config).expect("problem"));
-        solve(&mut s, 1e-6);
-        let cluster_links = s
-            .links
-            .iter()
-            .filter(|l| s.tree.nodes[l.receiver as usize].is_cluster())
-            .count();
-        assert!(cluster_links > 0, "no cluster received: {}", s.report());
-        let light = [
-            DVec3::new(-0.5, -0.5, 10.0),
-            DVec3::new(-0.5, 0.5, 10.0),
-            DVec3::new(0.5, 0.5, 10.0),
-            DVec3::new(0.5, -0.5, 10.0),
-        ];
-        // Normal-incidence kernel at the cube: the light's form factor from a point facing it.
-        let k = crate::formfactor::contour::point_to_polygon(DVec3::ZERO, DVec3::Z, &light);
-        let mesh = &s.problem.mesh;
-        for (e, b) in mesh.elements.iter().zip(s.radiosity()) {
-            if e.centroid.z > 5.0 {
-                continue; // the light
-            }
-            let exact =
-                0.5 * crate::formfactor::contour::point_to_polygon(e.centroid, e.normal, &light);
-            let allowed = 0.5
-                * k
-                * match e.normal.z {
-                    z if z > 0.9 => directional::SH_ERROR + 0.05,
-                    z if z < -0.9 => 0.0625 + 0.05,
-                    _ => 0.5,
-                };
-            assert!(
-                (b.x - exact).abs() <= allowed,
-                "normal {:?}: {} vs exact {exact} (allowed {allowed})",
-                e.normal,
-                b.x
-            );
-        }
-    }
-}
+mod tests;

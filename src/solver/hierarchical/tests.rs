@@ -1,0 +1,358 @@
+//! Tests of hierarchical and wavelet radiosity.
+
+use super::*;
+use crate::scene::{LoadOptions, Scene};
+use crate::solver::SolverConfig;
+use glam::DVec3;
+
+/// Σ of the kernels a leaf gathers through (its own links and its ancestors', and the
+/// block entries delivered to it or to an ancestor as a piece).
+fn kernel_sums(s: &HierarchicalSolver) -> Vec<f64> {
+    let mut down: Vec<f64> = (0..s.tree.nodes.len())
+        .map(|i| {
+            s.links[s.link_start[i] as usize..s.link_start[i + 1] as usize]
+                .iter()
+                .map(|l| l.kernel as f64)
+                .sum()
+        })
+        .collect();
+    let ones = vec![Rgb::ONE; s.tree.nodes.len()];
+    for k in &s.blocks {
+        let (pieces, n, g) = flatlet::block_gather(&s.tree, k, &ones);
+        for (p, g) in pieces[..n].iter().zip(g) {
+            down[*p as usize] += g.x;
+        }
+    }
+    for n in 0..down.len() {
+        let p = s.tree.parent[n];
+        if p != NONE {
+            down[n] += down[p as usize];
+        }
+    }
+    s.tree.leaf.iter().map(|&l| down[l as usize]).collect()
+}
+
+fn solver(builtin: &str, config: SolverConfig) -> HierarchicalSolver {
+    solver_in(builtin, config, Basis::Haar)
+}
+
+fn solver_in(builtin: &str, config: SolverConfig, basis: Basis) -> HierarchicalSolver {
+    let scene = Scene::builtin(builtin, &LoadOptions::default()).expect("scene");
+    HierarchicalSolver::with_basis(Problem::new(scene, config).expect("problem"), basis)
+}
+
+fn solve(s: &mut HierarchicalSolver, residual: f64) {
+    let cancel = AtomicBool::new(false);
+    while s.residual() > residual && s.steps() < 200 {
+        assert!(s.step(&cancel), "stopped at residual {}", s.residual());
+    }
+}
+
+/// In a closed convex box every point sees the whole box: the kernels a leaf gathers
+/// through must sum to 1, and each link's kernel must match the exact average, over the
+/// receiver's elements, of Lambert's point-to-polygon value summed over the sender's
+/// elements (an independent evaluation of the same integral). The oracle keeps each
+/// link's error times the sender's radiosity under ε (= the tolerance here: emission 1
+/// everywhere); it measures the spread from 4 points, so a few links may pass it.
+/// A kernel bug (a missing cosine, the wrong node's area, a cluster at full area) moves
+/// most links by far more.
+#[test]
+fn kernels_of_a_closed_box_match_the_exact_integral() {
+    let tolerance = 0.005;
+    let config = SolverConfig {
+        link_tolerance: tolerance,
+        ..SolverConfig::default()
+    };
+    let mut s = solver("furnace", config);
+    solve(&mut s, 1e-3);
+    let mesh = &s.problem.mesh;
+    let elements = |n: u32| {
+        let node = &s.tree.nodes[n as usize];
+        &s.tree.order[node.first as usize..(node.first + node.count) as usize]
+    };
+    let (mut outside, mut worst) = (0usize, 0.0f64);
+    // Links into clusters carry normal-incidence irradiance (tested below).
+    assert!(
+        s.links
+            .iter()
+            .all(|l| !s.tree.nodes[l.receiver as usize].is_cluster())
+    );
+    for l in &s.links {
+        let receivers = elements(l.receiver);
+        let mut exact = 0.0;
+        for &r in receivers {
+            let er = &mesh.elements[r as usize];
+            for &e in elements(l.sender) {
+                let es = &mesh.elements[e as usize];
+                exact += crate::formfactor::contour::point_to_polygon_with_normal(
+                    er.centroid,
+                    er.normal,
+                    es.corners(),
+                    es.normal,
+                );
+            }
+        }
+        exact /= receivers.len() as f64;
+        let err = (l.kernel as f64 - exact).abs();
+        worst = worst.max(err);
+        outside += usize::from(err > tolerance);
+    }
+    eprintln!(
+        "{} of {} links outside, worst {worst}",
+        outside,
+        s.links.len()
+    );
+    assert!(
+        outside * 100 <= s.links.len(),
+        "{outside} of {} links off by more than {tolerance}",
+        s.links.len()
+    );
+    assert!(worst <= 4.0 * tolerance, "a link off by {worst}");
+    let sums = kernel_sums(&s);
+    let mean = sums.iter().sum::<f64>() / sums.len() as f64;
+    assert!((mean - 1.0).abs() < 0.01, "mean row sum {mean}");
+}
+
+/// On the same mesh, hierarchical radiosity approaches the full-matrix answer (shooting
+/// to a residual of 1e-6) as the link tolerance falls: first order in the tolerance,
+/// so a tolerance 10× smaller must at least halve the error.
+/// Mean relative error against the full solution at each tolerance, in `basis`.
+fn full_solution_errors(basis: Basis, tolerances: &[f64]) -> Vec<f64> {
+    // Patches of one element: the full solution is the element-to-element system that
+    // the hierarchy's leaves approximate (larger patches shoot their average radiosity,
+    // a different discretisation, 1.7 % away on this mesh).
+    let base = SolverConfig {
+        element_size: Some(50.0),
+        patch_size: Some(50.0),
+        ..SolverConfig::default()
+    };
+    let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("scene");
+    let mut full = crate::solver::SolverKind::Shooting
+        .build(Problem::new(scene, base.clone()).expect("problem"))
+        .expect("shooting");
+    let cancel = AtomicBool::new(false);
+    while full.residual() > 1e-6 {
+        assert!(full.step(&cancel));
+    }
+    let mesh = &full.problem().mesh;
+    let error = |tolerance: f64| {
+        let mut s = solver_in(
+            "cornell",
+            SolverConfig {
+                link_tolerance: tolerance,
+                ..base.clone()
+            },
+            basis,
+        );
+        solve(&mut s, 1e-6);
+        let (mut diff, mut sum) = (0.0, 0.0);
+        for ((e, a), b) in mesh
+            .elements
+            .iter()
+            .zip(s.radiosity())
+            .zip(full.radiosity())
+        {
+            diff += channel_sum(*a - *b) * e.area;
+            sum += channel_sum(*b) * e.area;
+        }
+        diff / sum
+    };
+    tolerances.iter().map(|&t| error(t)).collect()
+}
+
+#[test]
+fn converges_to_the_full_solution_as_the_tolerance_falls() {
+    let [coarse, fine] = full_solution_errors(Basis::Haar, &[0.02, 0.002])[..] else {
+        unreachable!()
+    };
+    eprintln!("error {coarse} at 0.02, {fine} at 0.002");
+    assert!(
+        fine <= 0.5 * coarse,
+        "error {coarse} at 0.02, {fine} at 0.002"
+    );
+    assert!(fine < 0.03, "error {fine} at 0.002");
+}
+
+/// Flatlets converge to the same element-to-element solution; the pieces are half a
+/// node across, so at one tolerance they are at least as close as scalar links.
+#[test]
+fn wavelet_converges_to_the_full_solution_as_the_tolerance_falls() {
+    let [coarse, fine] = full_solution_errors(Basis::Flatlet, &[0.02, 0.002])[..] else {
+        unreachable!()
+    };
+    let [haar_coarse] = full_solution_errors(Basis::Haar, &[0.02])[..] else {
+        unreachable!()
+    };
+    eprintln!("flatlets: error {coarse} at 0.02, {fine} at 0.002; haar {haar_coarse} at 0.02");
+    assert!(
+        fine <= 0.5 * coarse,
+        "error {coarse} at 0.02, {fine} at 0.002"
+    );
+    assert!(fine < 0.03, "error {fine} at 0.002");
+    assert!(
+        coarse <= haar_coarse * 1.1,
+        "flatlets {coarse}, haar {haar_coarse}"
+    );
+}
+
+/// In the closed box each flatlet block entry is the exact piece-to-piece average kernel
+/// (within the oracle's tolerance, as for scalar links above), and what every leaf gathers
+/// through blocks and links sums to 1.
+#[test]
+fn flatlet_blocks_of_a_closed_box_match_the_exact_integral() {
+    let tolerance = 0.005;
+    let config = SolverConfig {
+        link_tolerance: tolerance,
+        ..SolverConfig::default()
+    };
+    let mut s = solver_in("furnace", config, Basis::Flatlet);
+    solve(&mut s, 1e-3);
+    assert!(!s.blocks.is_empty());
+    let mesh = &s.problem.mesh;
+    let elements = |n: u32| {
+        let node = &s.tree.nodes[n as usize];
+        &s.tree.order[node.first as usize..(node.first + node.count) as usize]
+    };
+    let (mut entries, mut outside, mut worst) = (0usize, 0usize, 0.0f64);
+    for k in &s.blocks {
+        let (pi, ni) = flatlet::pieces(&s.tree, k.receiver);
+        let (pj, nj) = flatlet::pieces(&s.tree, k.sender);
+        for (a, &p) in pi[..ni].iter().enumerate() {
+            for (c, &q) in pj[..nj].iter().enumerate() {
+                let mut exact = 0.0;
+                for &r in elements(p) {
+                    let er = &mesh.elements[r as usize];
+                    for &e in elements(q) {
+                        let es = &mesh.elements[e as usize];
+                        exact += crate::formfactor::contour::point_to_polygon_with_normal(
+                            er.centroid,
+                            er.normal,
+                            es.corners(),
+                            es.normal,
+                        );
+                    }
+                }
+                exact /= elements(p).len() as f64;
+                let err = (k.kernel[a * flatlet::PIECES + c] as f64 - exact).abs();
+                worst = worst.max(err);
+                outside += usize::from(err > tolerance);
+                entries += 1;
+            }
+        }
+    }
+    eprintln!("{outside} of {entries} block entries outside, worst {worst}");
+    assert!(
+        outside * 100 <= entries,
+        "{outside} of {entries} entries off"
+    );
+    assert!(worst <= 4.0 * tolerance, "an entry off by {worst}");
+    let sums = kernel_sums(&s);
+    let mean = sums.iter().sum::<f64>() / sums.len() as f64;
+    assert!((mean - 1.0).abs() < 0.01, "mean row sum {mean}");
+}
+
+/// A node's pieces are disjoint descendants covering exactly its elements.
+#[test]
+fn pieces_tile_their_node() {
+    let s = solver("cornell", SolverConfig::default());
+    for n in 0..s.tree.nodes.len() as u32 {
+        let node = &s.tree.nodes[n as usize];
+        let (p, len) = flatlet::pieces(&s.tree, n);
+        let mut ranges: Vec<(u32, u32)> = p[..len]
+            .iter()
+            .map(|&q| {
+                let c = &s.tree.nodes[q as usize];
+                (c.first, c.first + c.count)
+            })
+            .collect();
+        ranges.sort();
+        assert_eq!(ranges[0].0, node.first);
+        assert_eq!(ranges[len - 1].1, node.first + node.count);
+        for w in ranges.windows(2) {
+            assert_eq!(w[0].1, w[1].0, "node {n}: pieces overlap or leave a gap");
+        }
+        assert!(len == 1 || !node.is_leaf());
+    }
+}
+
+/// A memory budget smaller than the tolerance needs: refinement stops at it (the rest
+/// of the links kept coarser), the report says so, and the solve still converges to a
+/// finite, non-negative answer.
+#[test]
+fn the_link_budget_holds() {
+    let budget_links = 20_000;
+    let config = SolverConfig {
+        element_size: Some(50.0),
+        row_cache_bytes: budget_links * std::mem::size_of::<Link>(),
+        ..SolverConfig::default()
+    };
+    let mut s = solver("cornell", config);
+    solve(&mut s, 1e-4);
+    assert!(s.report().contains("link budget reached"), "{}", s.report());
+    // Past the budget only forced splits (cluster receivers, overlapping nodes) remain,
+    // at most a few per node.
+    assert!(
+        s.link_count() <= budget_links + 4 * s.node_count(),
+        "{} links",
+        s.link_count()
+    );
+    assert!(
+        s.radiosity()
+            .iter()
+            .all(|b| b.is_finite() && b.min_element() >= 0.0)
+    );
+}
+
+/// A small cube far from a square light is one cluster: it receives through links
+/// carrying directional irradiance, and each face reads its own: the face towards the
+/// light within the harmonics' error of Lambert's exact value, the face away nearly
+/// dark, the sides in between (the light has no reflectance, so this is one bounce).
+#[test]
+fn a_distant_cluster_receives_by_direction() {
+    let obj = "mtllib m.mtl\nusemtl light\nv -0.5 -0.5 10\nv -0.5 0.5 10\nv 0.5 0.5 10\nv 0.5 -0.5 10\nf 1 2 3 4\nusemtl cube\nv -0.05 -0.05 -0.05\nv 0.05 -0.05 -0.05\nv 0.05 0.05 -0.05\nv -0.05 0.05 -0.05\nv -0.05 -0.05 0.05\nv 0.05 -0.05 0.05\nv 0.05 0.05 0.05\nv -0.05 0.05 0.05\nf 5 8 7 6\nf 9 10 11 12\nf 5 6 10 9\nf 8 12 11 7\nf 5 9 12 8\nf 6 7 11 10\n";
+    let mtl = "newmtl light\nKd 0 0 0\nKe 1 1 1\nnewmtl cube\nKd 0.5 0.5 0.5\n";
+    let scene = Scene::from_obj_str("c.obj", obj, &[("m.mtl", mtl)], &LoadOptions::default())
+        .expect("scene");
+    let config = SolverConfig {
+        element_size: Some(0.05),
+        link_tolerance: 0.01,
+        ..SolverConfig::default()
+    };
+    let mut s = HierarchicalSolver::new(Problem::new(scene, config).expect("problem"));
+    solve(&mut s, 1e-6);
+    let cluster_links = s
+        .links
+        .iter()
+        .filter(|l| s.tree.nodes[l.receiver as usize].is_cluster())
+        .count();
+    assert!(cluster_links > 0, "no cluster received: {}", s.report());
+    let light = [
+        DVec3::new(-0.5, -0.5, 10.0),
+        DVec3::new(-0.5, 0.5, 10.0),
+        DVec3::new(0.5, 0.5, 10.0),
+        DVec3::new(0.5, -0.5, 10.0),
+    ];
+    // Normal-incidence kernel at the cube: the light's form factor from a point facing it.
+    let k = crate::formfactor::contour::point_to_polygon(DVec3::ZERO, DVec3::Z, &light);
+    let mesh = &s.problem.mesh;
+    for (e, b) in mesh.elements.iter().zip(s.radiosity()) {
+        if e.centroid.z > 5.0 {
+            continue; // the light
+        }
+        let exact =
+            0.5 * crate::formfactor::contour::point_to_polygon(e.centroid, e.normal, &light);
+        let allowed = 0.5
+            * k
+            * match e.normal.z {
+                z if z > 0.9 => directional::SH_ERROR + 0.05,
+                z if z < -0.9 => 0.0625 + 0.05,
+                _ => 0.5,
+            };
+        assert!(
+            (b.x - exact).abs() <= allowed,
+            "normal {:?}: {} vs exact {exact} (allowed {allowed})",
+            e.normal,
+            b.x
+        );
+    }
+}
