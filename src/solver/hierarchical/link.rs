@@ -64,6 +64,14 @@ const BLOCK_COST: usize = std::mem::size_of::<BlockLink>() / std::mem::size_of::
 /// Pairs decided at once in [`Linker::refine`] (bounds the pairs held waiting).
 const FRONTIER_BATCH: usize = 1 << 18;
 
+/// What [`Linker::expand`] makes of a batch of pairs.
+#[derive(Default)]
+struct Expanded {
+    links: Vec<Link>,
+    blocks: Vec<BlockLink>,
+    next: Vec<Pair>,
+}
+
 /// A receiver and a sender node.
 type Pair = (u32, u32);
 
@@ -152,13 +160,11 @@ impl Linker<'_> {
             let parts: Vec<(Vec<Link>, Vec<BlockLink>, Vec<Pair>)> = batch
                 .par_chunks(256)
                 .map(|chunk| {
-                    let mut kept = Vec::new();
-                    let mut kept_blocks = Vec::new();
-                    let mut next = Vec::new();
+                    let mut out = Expanded::default();
                     for &(i, j) in chunk {
-                        self.expand(i, j, b, eps, &mut kept, &mut kept_blocks, &mut next);
+                        self.expand(i, j, b, eps, &mut out);
                     }
-                    (kept, kept_blocks, next)
+                    (out.links, out.blocks, out.next)
                 })
                 .collect();
             drop(batch);
@@ -177,16 +183,12 @@ impl Linker<'_> {
     }
 
     /// One decision on the pair `i ← j`: a kept link into `kept`, or child pairs into `next`.
-    fn expand(
-        &self,
-        i: u32,
-        j: u32,
-        b: &[Rgb],
-        eps: f64,
-        kept: &mut Vec<Link>,
-        kept_blocks: &mut Vec<BlockLink>,
-        next: &mut Vec<(u32, u32)>,
-    ) {
+    fn expand(&self, i: u32, j: u32, b: &[Rgb], eps: f64, out: &mut Expanded) {
+        let Expanded {
+            links: kept,
+            blocks: kept_blocks,
+            next,
+        } = out;
         let (ni, nj) = (self.node(i), self.node(j));
         let ci = ni.children;
         let cj = nj.children;
