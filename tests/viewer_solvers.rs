@@ -266,6 +266,16 @@ fn the_chosen_solver_survives_a_remesh_and_a_method_change() {
 /// unchanged: deterministic links, the same values to f32 round-off).
 #[test]
 fn hierarchical_over_the_thread_matches_a_direct_run() {
+    multilevel_over_the_thread_matches_a_direct_run(SolverKind::Hierarchical);
+}
+
+/// The same for wavelet radiosity (flatlet blocks).
+#[test]
+fn wavelet_over_the_thread_matches_a_direct_run() {
+    multilevel_over_the_thread_matches_a_direct_run(SolverKind::Wavelet);
+}
+
+fn multilevel_over_the_thread_matches_a_direct_run(kind: SolverKind) {
     let stop = 1e-5;
     let mut h = spawn(ThreadConfig {
         solver: coarse_config(),
@@ -274,15 +284,15 @@ fn hierarchical_over_the_thread_matches_a_direct_run() {
     });
     let deadline = Instant::now() + Duration::from_secs(240);
     let shooting = first_snapshot(&h, deadline, |s| s.stats.steps >= 5);
-    send(&h, Command::SetSolver(SolverKind::Hierarchical), deadline);
+    send(&h, Command::SetSolver(kind), deadline);
     let done = first_snapshot(&h, deadline, |s| {
-        s.stats.solver == "hierarchical" && s.stats.converged
+        s.stats.solver == kind.name() && s.stats.converged
     });
     let errors = events(&h);
     assert!(errors.is_empty(), "unexpected events: {errors:?}");
     h.shutdown(Duration::from_secs(30));
 
-    assert_eq!(done.solver_kind, SolverKind::Hierarchical);
+    assert_eq!(done.solver_kind, kind);
     assert_eq!(
         done.geometry.id, shooting.geometry.id,
         "the switch keeps the mesh"
@@ -296,7 +306,7 @@ fn hierarchical_over_the_thread_matches_a_direct_run() {
     assert!(done.stats.matrix_bytes > 0);
 
     let problem = nusselt::solver::Problem::new(cornell(), coarse_config()).expect("problem");
-    let mut direct = SolverKind::Hierarchical.build(problem).expect("solver");
+    let mut direct = kind.build(problem).expect("solver");
     nusselt::solver::run_solver(
         direct.as_mut(),
         &StopCriteria {

@@ -33,7 +33,8 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 20.0)]
     pub seconds: f64,
     /// Only the scenes whose name contains this (e.g. `furnace`, `cube-0.99`, `cornell`,
-    /// `tworooms`, `cornell-image`, `hierarchical`).
+    /// `tworooms`, `cornell-image`, `hierarchical`, `large`: the gallery and a million-element
+    /// Cornell box with shooting, hierarchical and wavelet radiosity, several minutes).
     #[arg(long)]
     pub only: Option<String>,
     /// The Cornell box's path-traced reference image for `cornell-image`.
@@ -323,6 +324,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     }
     if wanted("hierarchical") {
         super::bench_hierarchical::cornell(&args.out, &args.cornell_reference)?;
+    }
+    if wanted("large") {
+        super::bench_hierarchical::large(&args.out, &args.cornell_reference)?;
     }
     if wanted("cornell-image") {
         super::bench_cornell::cornell(&args.out, &args.cornell_reference, args.seconds)?;
