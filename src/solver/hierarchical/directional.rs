@@ -65,6 +65,35 @@ pub fn irradiance(sh: &Sh9, n: DVec3) -> Rgb {
     e.max(Rgb::ZERO)
 }
 
+/// The clamped cosine's coefficients per band (see the module docs).
+fn band_weight(k: usize) -> f64 {
+    use std::f64::consts::PI;
+    match k {
+        0 => PI,
+        1..=3 => 2.0 * PI / 3.0,
+        _ => PI / 4.0,
+    }
+}
+
+/// One scalar function of direction in the same harmonics.
+pub type Sh9Scalar = [f64; 9];
+
+/// Adds `h max(n·d, 0)` as a function of `n` (a surface of normal `d` and weight `h`).
+pub fn add_scalar(sh: &mut Sh9Scalar, d: DVec3, h: f64) {
+    for (c, y) in sh.iter_mut().zip(basis(d)) {
+        *c += h * y;
+    }
+}
+
+/// `Σ h max(n·d, 0)` at unit `n` (clamped at zero), within [`SH_ERROR`] `Σ h`.
+pub fn clamped_cosine_sum(sh: &Sh9Scalar, n: DVec3) -> f64 {
+    let y = basis(n);
+    (0..9)
+        .map(|k| sh[k] * band_weight(k) * y[k])
+        .sum::<f64>()
+        .max(0.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -87,6 +116,36 @@ mod tests {
                 let e = irradiance(&sh, n).x;
                 assert!((e - exact).abs() <= SH_ERROR, "{e} vs {exact}");
             }
+        }
+    }
+
+    /// The projected area of a set of facets toward a direction: within the stated error
+    /// of the exact `Σ A max(n·ω, 0)`; a sphere's is a quarter of its area every way.
+    #[test]
+    fn projected_area_of_facets_within_the_stated_error() {
+        let mut rng = Rng::new(11, 0);
+        let mut sh = [0.0; 9];
+        let mut facets = Vec::new();
+        for _ in 0..20 {
+            let n = random_unit(&mut rng);
+            let a = rng.next_f64();
+            add_scalar(&mut sh, n, a);
+            facets.push((n, a));
+        }
+        let total: f64 = facets.iter().map(|f| f.1).sum();
+        for _ in 0..200 {
+            let w = random_unit(&mut rng);
+            let exact: f64 = facets.iter().map(|(n, a)| a * n.dot(w).max(0.0)).sum();
+            let p = clamped_cosine_sum(&sh, w);
+            assert!((p - exact).abs() <= SH_ERROR * total, "{p} vs {exact}");
+        }
+        let mut sphere = [0.0; 9];
+        for _ in 0..20000 {
+            add_scalar(&mut sphere, random_unit(&mut rng), 1.0 / 20000.0);
+        }
+        for _ in 0..20 {
+            let p = clamped_cosine_sum(&sphere, random_unit(&mut rng));
+            assert!((p - 0.25).abs() < 0.01, "{p}");
         }
     }
 

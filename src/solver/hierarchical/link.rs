@@ -8,8 +8,12 @@
 //!   centroid (leaf receiver) or at 4 stratified element centroids of the receiver;
 //! - a planar inner sender: the disc formula `A cosθ_i cosθ_j / (π r² + A)` (Wallace,
 //!   Elmquist & Haines 1989) from the same points;
-//! - a cluster sender: an isotropic emitter of projected area `A/4` (the mean of
-//!   `max(cosθ, 0)` over the sphere; Sillion 1995), `A/4 cosθ_i / (π r² + A/4)`.
+//! - a cluster sender: a point emitter of its projected area towards the receiver,
+//!   `min(P(ω) cosθ_i / (π r²), 1)` with `P(ω) = Σ A max(n·ω, 0)` over its planar groups
+//!   in second-order harmonics ([`super::directional`]). The isotropic `A/4` of Sillion
+//!   (1995), with the disc formula's `+ A/4` under `π r²`, left a ball in a furnace 8 % and
+//!   the walls 6 % short of the light they gather: a piece of a convex surface facing the
+//!   receiver shows it up to 4× more than `A/4`.
 //!
 //! Visibility is the fraction of 4 shadow rays between area-sampled points of the two nodes
 //! that arrive (16 for a partly hidden pair with a leaf on one end).
@@ -55,6 +59,8 @@ pub const RAYS: u32 = 4;
 pub const RAYS_PARTIAL: u32 = 16;
 /// Points of a receiver (element centroids, stratified by area) the kernel is estimated at.
 const RECEIVER_POINTS: u32 = 4;
+/// Points of a planar inner sender its transfer is summed from.
+const SENDER_POINTS: u32 = 4;
 /// Slack for planes of groups whose elements are within `PLANAR_COS` of each other.
 const PLANE_SLACK: f64 = 0.05;
 
@@ -115,7 +121,18 @@ impl Linker<'_> {
     pub(super) fn receiver_eps(&self, i: u32, eps: f64) -> f64 {
         let area = self.node(i).area;
         if area > 0.0 && area < self.reference_area {
-            eps * (self.reference_area / area)
+            let r = self.reference_area / area;
+            let mode = std::env::var("NX_MODE").unwrap_or_default();
+            let f = if let Some(k) = mode.strip_prefix("cap:") {
+                r.min(k.parse::<f64>().unwrap())
+            } else if mode == "sqrt" {
+                r.sqrt()
+            } else if mode == "none" {
+                1.0
+            } else {
+                r
+            };
+            eps * f
         } else {
             eps
         }
@@ -275,10 +292,10 @@ impl Linker<'_> {
         }
         let (unoccluded, spread) = self.unoccluded(i, j);
         let r2 = d.length_squared();
-        let sender_area = if nj.is_cluster() {
-            nj.area / 4.0
-        } else {
-            nj.area
+        let toward_receiver = -d / r2.sqrt().max(f64::MIN_POSITIVE);
+        let sender_area = match self.tree.projected_area(j, toward_receiver) {
+            Some(p) => p.max(nj.area / 4.0),
+            None => nj.area,
         };
         let both_leaves = ni.is_leaf() && nj.is_leaf();
         let crosses_i = ni.normal.dot(d).abs() < nj.radius && !ni.is_leaf();
@@ -362,7 +379,7 @@ impl Linker<'_> {
             return split;
         }
         let dir = d / dist;
-        let k = self.normal_incidence(ni.centroid, dir, nj);
+        let k = self.normal_incidence(ni.centroid, dir, j);
         if k <= 0.0 {
             return Decision::Drop;
         }
@@ -384,15 +401,15 @@ impl Linker<'_> {
     }
 
     /// Normal-incidence kernel at `x` facing `dir` (towards the sender's centroid).
-    fn normal_incidence(&self, x: DVec3, dir: DVec3, nj: &Node) -> f64 {
+    fn normal_incidence(&self, x: DVec3, dir: DVec3, j: u32) -> f64 {
+        let nj = self.node(j);
         if nj.is_leaf() {
             let e = &self.mesh.elements[self.tree.order[nj.first as usize] as usize];
             return contour::point_to_polygon_with_normal(x, dir, e.corners(), e.normal);
         }
         let r2 = (nj.centroid - x).length_squared();
-        if nj.is_cluster() {
-            let a = nj.area / 4.0;
-            a / (PI * r2 + a)
+        if let Some(a) = self.tree.projected_area(j, -dir) {
+            (a / (PI * r2)).min(1.0)
         } else {
             let cos_j = (-nj.normal.dot(dir)).max(0.0);
             nj.area * cos_j / (PI * r2 + nj.area)
@@ -415,12 +432,24 @@ impl Linker<'_> {
                 }
                 let r = r2.sqrt();
                 let cos_i = (n.dot(d) / r).max(0.0);
-                if nj.is_cluster() {
-                    let a = nj.area / 4.0;
-                    a * cos_i / (PI * r2 + a)
+                if let Some(a) = self.tree.projected_area(j, -d / r) {
+                    (a / (PI * r2)).min(1.0) * cos_i
                 } else {
-                    let cos_j = (-nj.normal.dot(d) / r).max(0.0);
-                    nj.area * cos_i * cos_j / (PI * r2 + nj.area)
+                    // Four sub-sources at stratified element centroids: one at the
+                    // centroid underestimates a large sender seen obliquely.
+                    let a = nj.area / SENDER_POINTS as f64;
+                    (0..SENDER_POINTS)
+                        .map(|k| {
+                            let u = (k as f64 + 0.5) / SENDER_POINTS as f64;
+                            let e = &self.mesh.elements[self.tree.element_at(nj, u) as usize];
+                            let d = e.centroid - x;
+                            let r2 = d.length_squared().max(f64::MIN_POSITIVE);
+                            let r = r2.sqrt();
+                            let cos_i = (n.dot(d) / r).max(0.0);
+                            let cos_j = (-nj.normal.dot(d) / r).max(0.0);
+                            a * cos_i * cos_j / (PI * r2 + a)
+                        })
+                        .sum()
                 }
             }
         };

@@ -74,9 +74,6 @@ pub struct HierarchicalSolver {
     /// Sorted by receiver (then sender); `link_start[i]..link_start[i + 1]` are node `i`'s.
     links: Vec<Link>,
     link_start: Vec<u32>,
-    /// The cluster nodes (pre-order) and each node's index among them ([`NONE`] if planar).
-    clusters: Vec<u32>,
-    cluster_slot: Vec<u32>,
     /// Radiosity per node (area average of its elements).
     node_b: Vec<Rgb>,
     radiosity: Vec<Rgb>,
@@ -105,13 +102,6 @@ impl HierarchicalSolver {
     /// Wavelet radiosity in `basis` (hierarchical radiosity for [`Basis::Haar`]).
     pub fn with_basis(problem: Problem, basis: Basis) -> Self {
         let tree = Hierarchy::build(&problem.mesh);
-        let clusters: Vec<u32> = (0..tree.nodes.len() as u32)
-            .filter(|&n| tree.nodes[n as usize].is_cluster())
-            .collect();
-        let mut cluster_slot = vec![NONE; tree.nodes.len()];
-        for (k, &n) in clusters.iter().enumerate() {
-            cluster_slot[n as usize] = k as u32;
-        }
         let mut s = Self {
             problem,
             basis,
@@ -120,8 +110,6 @@ impl HierarchicalSolver {
             tree,
             links: Vec::new(),
             link_start: Vec::new(),
-            clusters,
-            cluster_slot,
             node_b: Vec::new(),
             radiosity: Vec::new(),
             change: Vec::new(),
@@ -294,7 +282,7 @@ impl HierarchicalSolver {
                 }
             }
         }
-        let clusters = &self.clusters;
+        let clusters = &self.tree.clusters;
         let mut sh: Vec<directional::Sh9> = clusters
             .par_iter()
             .map(|&i| {
@@ -312,7 +300,7 @@ impl HierarchicalSolver {
         // Push: accumulated irradiance, parents first (pre-order). A cluster's harmonics
         // add up down the cluster levels and are read once at each planar group's normal
         // (its elements' normals agree within `tree::PLANAR_COS`).
-        let slot = &self.cluster_slot;
+        let slot = &self.tree.cluster_slot;
         for n in 0..down.len() {
             let p = self.tree.parent[n];
             if p == NONE {
@@ -375,8 +363,7 @@ impl HierarchicalSolver {
             + self.block_start.len() * 4
             + self.tree.bytes()
             + self.node_b.len() * 24
-            + self.cluster_slot.len() * 4
-            + self.clusters.len() * (4 + std::mem::size_of::<directional::Sh9>())
+            + self.tree.clusters.len() * std::mem::size_of::<directional::Sh9>()
     }
 }
 

@@ -17,6 +17,7 @@
 
 use glam::DVec3;
 
+use super::directional;
 use crate::mesh::Mesh;
 
 /// Elements whose normals are within this cosine of their surface's are one planar group.
@@ -65,6 +66,12 @@ pub struct Hierarchy {
     /// The parent of each node ([`NONE`] for the root).
     pub parent: Vec<u32>,
     pub planar_groups: usize,
+    /// The cluster nodes (pre-order) and each node's index among them ([`NONE`] if planar).
+    pub clusters: Vec<u32>,
+    pub cluster_slot: Vec<u32>,
+    /// Per cluster: its projected area as a function of direction, `Σ A max(n·ω, 0)` over
+    /// its planar groups, in harmonics ([`directional::clamped_cosine_sum`]).
+    pub projected: Vec<directional::Sh9Scalar>,
 }
 
 /// One planar group (or a single element of a curved patch).
@@ -85,6 +92,9 @@ impl Hierarchy {
             leaf: vec![NONE; mesh.elements.len()],
             parent: Vec::with_capacity(2 * mesh.elements.len()),
             planar_groups: groups.len(),
+            clusters: Vec::new(),
+            cluster_slot: Vec::new(),
+            projected: Vec::new(),
         };
         if !groups.is_empty() {
             let mut ids: Vec<u32> = (0..groups.len() as u32).collect();
@@ -97,7 +107,44 @@ impl Hierarchy {
             sum += mesh.elements[e as usize].area;
             h.area_prefix.push(sum);
         }
+        h.clusters = (0..h.nodes.len() as u32)
+            .filter(|&n| h.nodes[n as usize].is_cluster())
+            .collect();
+        h.cluster_slot = vec![NONE; h.nodes.len()];
+        for (k, &n) in h.clusters.iter().enumerate() {
+            h.cluster_slot[n as usize] = k as u32;
+        }
+        // Children after parents in pre-order: sum bottom-up.
+        h.projected = vec![[0.0; 9]; h.clusters.len()];
+        for k in (0..h.clusters.len()).rev() {
+            let node = &h.nodes[h.clusters[k] as usize];
+            let mut sh = [0.0; 9];
+            for c in node.children {
+                let child = &h.nodes[c as usize];
+                match h.cluster_slot[c as usize] {
+                    NONE => directional::add_scalar(&mut sh, child.normal, child.area),
+                    slot => {
+                        for (a, b) in sh.iter_mut().zip(h.projected[slot as usize]) {
+                            *a += b;
+                        }
+                    }
+                }
+            }
+            h.projected[k] = sh;
+        }
         h
+    }
+
+    /// A cluster's projected area towards unit direction `w` (towards the viewer);
+    /// `None` for a planar node.
+    pub fn projected_area(&self, node: u32, w: DVec3) -> Option<f64> {
+        match self.cluster_slot[node as usize] {
+            NONE => None,
+            slot => Some(directional::clamped_cosine_sum(
+                &self.projected[slot as usize],
+                w,
+            )),
+        }
     }
 
     pub fn root(&self) -> Option<u32> {
@@ -106,7 +153,8 @@ impl Hierarchy {
 
     /// Memory held, in bytes.
     pub fn bytes(&self) -> usize {
-        self.nodes.len() * (std::mem::size_of::<Node>() + 4)
+        self.nodes.len() * (std::mem::size_of::<Node>() + 8)
+            + self.clusters.len() * (4 + std::mem::size_of::<directional::Sh9Scalar>())
             + self.order.len() * 4
             + self.area_prefix.len() * 8
             + self.leaf.len() * 4
