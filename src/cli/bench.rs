@@ -40,6 +40,10 @@ pub struct BenchArgs {
     /// The Cornell box's path-traced reference image for `cornell-image`.
     #[arg(long, default_value = "benches/data/cornell_256_ref.pfm")]
     pub cornell_reference: PathBuf,
+    /// The gallery's path-traced reference image for `large` (`nusselt reference --builtin
+    /// gallery --spp 4096`, about 1 % noise).
+    #[arg(long, default_value = "benches/data/gallery_256_ref.pfm")]
+    pub gallery_reference: PathBuf,
 }
 
 /// Resets the process's peak resident memory (Linux: `5` to `/proc/self/clear_refs`), so
@@ -326,7 +330,11 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         super::bench_hierarchical::cornell(&args.out, &args.cornell_reference)?;
     }
     if wanted("large") {
-        super::bench_hierarchical::large(&args.out, &args.cornell_reference)?;
+        super::bench_hierarchical::large(
+            &args.out,
+            &args.cornell_reference,
+            &args.gallery_reference,
+        )?;
     }
     if wanted("cornell-image") {
         super::bench_cornell::cornell(&args.out, &args.cornell_reference, args.seconds)?;

@@ -33,8 +33,14 @@ pub(super) fn stats_section(ui: &mut egui::Ui, s: &Snapshot, failed: bool) {
             format!("{:.1}", st.steps_per_second),
         );
         row(ui, residual, format!("{:.4} %", 100.0 * st.residual));
-        if !st.report.is_empty() {
-            row(ui, "report", st.report.clone());
+        // One clause a row: a long report would widen the panel over the viewport.
+        let clauses = st
+            .report
+            .split([',', ';'])
+            .map(str::trim)
+            .filter(|c| !c.is_empty());
+        for (k, clause) in clauses.enumerate() {
+            row(ui, if k == 0 { "report" } else { "" }, clause.to_string());
         }
         if st.matrix_bytes > 0 {
             row(
