@@ -70,10 +70,17 @@ pub struct RenderArgs {
     #[arg(long, allow_negative_numbers = true)]
     pub link_tolerance: Option<f64>,
     /// How the image is made from the solution: `vertex` (radiosity interpolated over the
-    /// mesh) or `direct` (the lights' direct contribution per pixel with exact form factors
-    /// and shadow rays, the indirect rest from the solution; sharper shadows, ~1 s more).
+    /// mesh), `direct` (the lights' direct contribution per pixel with exact form factors
+    /// and shadow rays, the indirect rest from the solution; sharper shadows, ~1 s more) or
+    /// `gather` (direct per pixel plus one bounce gathered from the solution by 64
+    /// cosine-weighted rays per pixel: the solution's error averaged over what each point
+    /// sees, several seconds more).
     #[arg(long, default_value = "vertex")]
     pub pass: String,
+    /// Gather rays per pixel of `--pass gather` (shared among the pixel's samples; the
+    /// gather's noise falls as 1/√N).
+    #[arg(long, default_value_t = crate::render::gather::GATHER_RAYS_PER_PIXEL)]
+    pub gather_rays: u32,
     /// Adaptive meshing: solve, halve the elements of every patch where the radiance varies
     /// across an element by more than this fraction of it (`src/mesh/adaptive.rs`), and solve
     /// again on the refined mesh; `--adaptive-passes` times (default 2), each to
@@ -263,11 +270,13 @@ fn render(args: &RenderArgs) -> Result<()> {
     if args.seconds.is_some_and(|s| !(s.is_finite() && s >= 0.0)) {
         bail!("--seconds must be a number >= 0");
     }
-    let direct_pass = match args.pass.as_str() {
-        "vertex" => false,
-        "direct" => true,
-        other => bail!("unknown --pass '{other}' (expected vertex or direct)"),
+    let pass = match args.pass.as_str() {
+        "vertex" | "direct" | "gather" => args.pass.as_str(),
+        other => bail!("unknown --pass '{other}' (expected vertex, direct or gather)"),
     };
+    if args.gather_rays == 0 || args.gather_rays > 65536 {
+        bail!("--gather-rays must be between 1 and 65536");
+    }
     if args.adaptive.is_some_and(|t| !(t.is_finite() && t > 0.0)) {
         bail!("--adaptive must be a positive number (a fraction, e.g. 0.1)");
     }
@@ -434,8 +443,10 @@ fn render(args: &RenderArgs) -> Result<()> {
     drop(rows);
 
     let render_start = Instant::now();
-    let image = if direct_pass {
+    let image = if pass == "direct" {
         render::direct::render_solution(&problem, &radiance, &settings)
+    } else if pass == "gather" {
+        render::gather::render_solution(&problem, &radiance, &settings, args.gather_rays)
     } else {
         let vertex: Vec<_> = problem.mesh.vertex_values(&radiance);
         let bvh = render::display_bvh(&problem.scene, &problem.mesh);

@@ -6,6 +6,7 @@
 //! the same scene for measuring the image error (pbrt-v4's `--mse-reference-image` idea).
 
 pub mod direct;
+pub mod gather;
 pub mod image;
 pub mod pathtrace;
 pub mod view;

@@ -121,18 +121,7 @@ impl Linker<'_> {
     pub(super) fn receiver_eps(&self, i: u32, eps: f64) -> f64 {
         let area = self.node(i).area;
         if area > 0.0 && area < self.reference_area {
-            let r = self.reference_area / area;
-            let mode = std::env::var("NX_MODE").unwrap_or_default();
-            let f = if let Some(k) = mode.strip_prefix("cap:") {
-                r.min(k.parse::<f64>().unwrap())
-            } else if mode == "sqrt" {
-                r.sqrt()
-            } else if mode == "none" {
-                1.0
-            } else {
-                r
-            };
-            eps * f
+            eps * (self.reference_area / area)
         } else {
             eps
         }
