@@ -372,7 +372,11 @@ fn solver_flags_are_checked() {
     refused(&with(&["--tolerance", "0"]), "--tolerance");
     refused(&with(&["--tolerance", "nan"]), "--tolerance");
     refused(&with(&["--ambient", "local"]), "unknown --ambient 'local'");
-    refused(&with(&["--pass", "gather"]), "unknown --pass 'gather'");
+    refused(&with(&["--pass", "photon"]), "unknown --pass 'photon'");
+    refused(
+        &with(&["--pass", "gather", "--gather-rays", "0"]),
+        "--gather-rays must be between 1 and 65536",
+    );
     refused(
         &with(&["--adaptive", "-1"]),
         "--adaptive must be a positive number",
