@@ -28,10 +28,11 @@
 //! that grows as they shrink (a gradual minimum area, HSA's `A_ε`), so the links stop
 //! growing with the element count: their error weighs by their area in the power and image
 //! error.
-//! Measured (docs/BENCHMARKS.md): the Cornell box at the default tolerance 2.95 % from the
-//! path-traced reference in 4.0 s (shooting 1.78 % in 6.7 s); at a million elements
-//! converged in 19 s, 837 MB peak for the whole render; the 100 k-triangle gallery in 21 s
-//! (shooting 32 s).
+//! Measured (docs/BENCHMARKS.md): the Cornell box at the default tolerance 2.72 % from the
+//! path-traced reference in 3.7 s (shooting 1.78 % in 5.8 s); at a million elements
+//! converged in 19 s, 854 MB peak for the whole render; the 100 k-triangle gallery in 22 s,
+//! 10.2 % (shooting 29 s, 7.3 %: the statue's facets gather through point-source links
+//! that err low within the tolerance).
 //!
 //! [`SolverConfig::link_tolerance`]: super::SolverConfig::link_tolerance
 
