@@ -10,6 +10,7 @@ mod bench_images;
 pub mod cases;
 mod formfactor;
 mod plot;
+mod reference;
 mod render;
 mod view;
 
@@ -36,11 +37,11 @@ pub enum Command {
     /// Solve a scene by progressive radiosity and render an image of the solution.
     Render(render::RenderArgs),
     /// Render an unbiased path-traced reference image of a scene.
-    Reference(render::ReferenceArgs),
+    Reference(reference::ReferenceArgs),
     /// Evaluate form-factor cases from a JSON file; one JSON line per case.
     Formfactor(formfactor::FormfactorArgs),
     /// Image error of any PFM image against a reference, with the render's pixel mask.
-    Compare(render::CompareArgs),
+    Compare(reference::CompareArgs),
     /// Open the live viewer (the default command: `nusselt` = `nusselt view --builtin cornell`).
     View(view::ViewCmdArgs),
     /// Every solver on scenes with known answers: error and residual against time (CSV).
@@ -52,7 +53,8 @@ pub enum Command {
 pub struct SceneArgs {
     /// OBJ file (with its MTL files next to it).
     pub scene: Option<PathBuf>,
-    /// Built-in scene: cornell, furnace or cube (ceiling-lit unit cube, 12 triangles).
+    /// Built-in scene: cornell, furnace, cube (ceiling-lit unit cube, 12 triangles), tworooms
+    /// (two rooms and a door ajar) or gallery (a room with a 100,500-triangle statue).
     #[arg(long, conflicts_with = "scene")]
     pub builtin: Option<String>,
     /// Treat every face as two-sided (reflects and emits on both sides).
@@ -181,9 +183,9 @@ pub fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Some(Command::Render(args)) => render::run_render(&args),
-        Some(Command::Reference(args)) => render::run_reference(&args),
+        Some(Command::Reference(args)) => reference::run_reference(&args),
         Some(Command::Formfactor(args)) => formfactor::run(&args),
-        Some(Command::Compare(args)) => render::run_compare(&args),
+        Some(Command::Compare(args)) => reference::run_compare(&args),
         Some(Command::View(args)) => view::run(&args),
         Some(Command::Bench(args)) => bench::run(&args),
         None => view::run(&view::ViewCmdArgs::cornell()),

@@ -1,4 +1,4 @@
-//! `nusselt render` and `nusselt reference`.
+//! `nusselt render`.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -200,24 +200,7 @@ pub fn parse_method(flag: &str, name: &str) -> Result<FormFactorMethod> {
     })
 }
 
-#[derive(Args, Debug)]
-pub struct ReferenceArgs {
-    #[command(flatten)]
-    pub scene: SceneArgs,
-    #[command(flatten)]
-    pub view: ViewArgs,
-    /// Output image (.pfm recommended).
-    #[arg(long)]
-    pub out: PathBuf,
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    #[arg(long, allow_negative_numbers = true, default_value_t = 1.0)]
-    pub exposure: f64,
-    #[arg(long)]
-    pub quiet: bool,
-}
-
-fn bar(quiet: bool, len: u64, template: &str) -> ProgressBar {
+pub(super) fn bar(quiet: bool, len: u64, template: &str) -> ProgressBar {
     if quiet {
         return ProgressBar::hidden();
     }
@@ -236,7 +219,7 @@ fn create(path: &PathBuf) -> Result<std::io::BufWriter<std::fs::File>> {
 
 /// The output checks shared by `render` and `reference`, made before any work: an image
 /// extension `Image::save` writes, in a folder that exists.
-fn check_image_out(out: &std::path::Path) -> Result<()> {
+pub(super) fn check_image_out(out: &std::path::Path) -> Result<()> {
     render::image::check_extension(out).context("--out")?;
     check_output("--out", out)
 }
@@ -548,66 +531,4 @@ fn physical_memory_bytes() -> Option<usize> {
     let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
     let kb: usize = line.split_whitespace().nth(1)?.parse().ok()?;
     kb.checked_mul(1024)
-}
-
-pub fn run_reference(args: &ReferenceArgs) -> Result<()> {
-    check_image_out(&args.out)?;
-    if !(args.exposure.is_finite() && args.exposure > 0.0) {
-        bail!("--exposure must be a positive number");
-    }
-    let scene = args.scene.load()?;
-    let settings = args.view.settings(&scene, args.seed)?;
-    let start = Instant::now();
-    let pb = bar(
-        args.quiet,
-        settings.height as u64,
-        "path tracing {bar:40} {pos}/{len} rows [{elapsed} / ~{duration}]",
-    );
-    let image =
-        render::pathtrace::reference(&scene, &settings, &|rows| pb.set_position(rows as u64));
-    pb.finish_and_clear();
-    image.save(&args.out, args.exposure)?;
-    if !args.quiet {
-        eprintln!(
-            "{} spp at {}×{} in {:.1} s; wrote {}",
-            settings.spp,
-            settings.width,
-            settings.height,
-            start.elapsed().as_secs_f64(),
-            args.out.display()
-        );
-    }
-    Ok(())
-}
-
-#[derive(Args, Debug)]
-pub struct CompareArgs {
-    #[command(flatten)]
-    pub scene: SceneArgs,
-    /// Camera (as for render); the image size comes from the images.
-    #[arg(long, allow_hyphen_values = true)]
-    pub camera: Option<String>,
-    /// The image to judge (PFM).
-    #[arg(long)]
-    pub image: PathBuf,
-    /// The reference (PFM).
-    #[arg(long)]
-    pub reference: PathBuf,
-}
-
-/// Prints `{"error": …, "pixels": …}`: the relative RMS over the pixels that see neither a
-/// light nor the background (the mask `render --reference` uses).
-pub fn run_compare(args: &CompareArgs) -> Result<()> {
-    let scene = args.scene.load()?;
-    let image = Image::load_pfm(&args.image)?;
-    let reference = Image::load_pfm(&args.reference)?;
-    let camera = match &args.camera {
-        Some(text) => crate::scene::Camera::parse(text).context("--camera")?,
-        None => crate::render::view::default_camera(&scene),
-    };
-    let mask = render::error_mask(&scene, &camera, reference.width, reference.height);
-    let error = render::relative_rms(&image, &reference, &mask)?;
-    let pixels = mask.iter().filter(|m| **m).count();
-    println!("{}", serde_json::json!({"error": error, "pixels": pixels}));
-    Ok(())
 }
