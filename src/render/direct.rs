@@ -21,16 +21,15 @@
 use std::sync::atomic::AtomicBool;
 
 use glam::DVec3;
-use rayon::prelude::*;
 
 use crate::formfactor::{self, FormFactorMethod, RowContext, exact};
-use crate::geometry::sampling::{hash_seed, triangle_point};
+use crate::geometry::sampling::triangle_point;
 use crate::geometry::shaft::Shaft;
 use crate::geometry::{Bvh, Ray, Rng, polygon};
 use crate::mesh::{Mesh, PatchId};
 use crate::scene::{Rgb, Scene};
 
-use super::{Image, RenderSettings, SolutionView, pixel_samples};
+use super::{Image, RenderSettings, SolutionView};
 
 /// Shadow rays per light per camera sample (stratified over the light), where too many
 /// triangles cut the point's pyramid to the light for exact clipping.
@@ -232,24 +231,7 @@ pub fn render_solution(
 /// Renders with direct light per pixel: `view.vertex_radiance` must hold the indirect part
 /// (the solution minus each element's direct share, see the module docs).
 pub fn render(view: &SolutionView, lights: &DirectLight, settings: &RenderSettings) -> Image {
-    let (w, h) = (settings.width, settings.height);
-    let cam = settings.camera;
-    let mut img = Image::new(w, h);
-    img.pixels
-        .par_chunks_mut(w as usize)
-        .enumerate()
-        .for_each(|(y, row)| {
-            for (x, px) in row.iter_mut().enumerate() {
-                let mut rng = Rng::new(hash_seed(&[settings.seed, x as u64, y as u64, 0xd1]), 5);
-                let mut sum = DVec3::ZERO;
-                pixel_samples(x as u32, y as u32, settings.spp, settings.seed, |sx, sy| {
-                    let ray = Ray::new(cam.eye, cam.ray_dir(sx, sy, w, h));
-                    sum += shade(view, lights, &ray, &mut rng);
-                });
-                *px = sum / settings.spp.max(1) as f64;
-            }
-        });
-    img
+    super::render_pixels(settings, 0xd1, |ray, rng| shade(view, lights, ray, rng))
 }
 
 fn shade(view: &SolutionView, lights: &DirectLight, ray: &Ray, rng: &mut Rng) -> Rgb {

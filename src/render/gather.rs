@@ -10,15 +10,12 @@
 //! the gather's noise, `σ/√N` with `N` rays per pixel (Reichert 1992; Lischinski, Smits &
 //! Greenberg 1994 use the same split). A furnace is exact: every ray sees the same `B'`.
 
-use glam::DVec3;
-use rayon::prelude::*;
-
-use crate::geometry::sampling::{cosine_hemisphere, hash_seed};
+use crate::geometry::sampling::cosine_hemisphere;
 use crate::geometry::{Ray, Rng};
 use crate::scene::Rgb;
 
 use super::direct::DirectLight;
-use super::{Image, RenderSettings, SolutionView, pixel_samples};
+use super::{Image, RenderSettings, SolutionView};
 
 /// Gather rays per pixel, shared among its camera samples.
 pub const GATHER_RAYS_PER_PIXEL: u32 = 64;
@@ -46,24 +43,9 @@ pub fn render_solution(
     };
     let lights = DirectLight::new(&problem.scene, &problem.mesh, &problem.bvh, problem.epsilon);
     let per_sample = (rays_per_pixel / settings.spp.max(1)).max(1);
-    let (w, h) = (settings.width, settings.height);
-    let cam = settings.camera;
-    let mut img = Image::new(w, h);
-    img.pixels
-        .par_chunks_mut(w as usize)
-        .enumerate()
-        .for_each(|(y, row)| {
-            for (x, px) in row.iter_mut().enumerate() {
-                let mut rng = Rng::new(hash_seed(&[settings.seed, x as u64, y as u64, 0x9a]), 6);
-                let mut sum = DVec3::ZERO;
-                pixel_samples(x as u32, y as u32, settings.spp, settings.seed, |sx, sy| {
-                    let ray = Ray::new(cam.eye, cam.ray_dir(sx, sy, w, h));
-                    sum += shade(&view, &lights, &ray, per_sample, problem.epsilon, &mut rng);
-                });
-                *px = sum / settings.spp.max(1) as f64;
-            }
-        });
-    img
+    super::render_pixels(settings, 0x9a, |ray, rng| {
+        shade(&view, &lights, ray, per_sample, problem.epsilon, rng)
+    })
 }
 
 /// The reflected radiosity `B'` the ray sees (zero for the unlit back of a one-sided face

@@ -145,6 +145,19 @@ pub(crate) fn pixel_samples(x: u32, y: u32, spp: u32, seed: u64, mut f: impl FnM
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn render_solution(view: &SolutionView, settings: &RenderSettings) -> Image {
+    render_pixels(settings, 0, |ray, _| match shade(view, ray) {
+        FirstHit::Background => Rgb::ZERO,
+        FirstHit::Emitter(e) | FirstHit::Surface(e) => e,
+    })
+}
+
+/// Every pixel the mean of `shade` over its camera samples ([`pixel_samples`]), rows in
+/// parallel; `shade` gets a generator seeded by the pixel and `tag` (one stream per pass).
+pub(crate) fn render_pixels(
+    settings: &RenderSettings,
+    tag: u64,
+    shade: impl Fn(&Ray, &mut Rng) -> Rgb + Sync,
+) -> Image {
     let (w, h) = (settings.width, settings.height);
     let cam = settings.camera;
     let mut img = Image::new(w, h);
@@ -153,13 +166,11 @@ pub fn render_solution(view: &SolutionView, settings: &RenderSettings) -> Image 
         .enumerate()
         .for_each(|(y, row)| {
             for (x, px) in row.iter_mut().enumerate() {
+                let mut rng = Rng::new(hash_seed(&[settings.seed, x as u64, y as u64, tag]), 5);
                 let mut sum = DVec3::ZERO;
                 pixel_samples(x as u32, y as u32, settings.spp, settings.seed, |sx, sy| {
                     let ray = Ray::new(cam.eye, cam.ray_dir(sx, sy, w, h));
-                    sum += match shade(view, &ray) {
-                        FirstHit::Background => Rgb::ZERO,
-                        FirstHit::Emitter(e) | FirstHit::Surface(e) => e,
-                    };
+                    sum += shade(&ray, &mut rng);
                 });
                 *px = sum / settings.spp.max(1) as f64;
             }
