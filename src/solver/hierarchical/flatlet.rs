@@ -8,14 +8,15 @@
 //! on our binary (median-split) surface trees that is a node's grandchildren, up to 4
 //! pieces, and a link a 4 × 4 block. A block is kept when every piece pair passes the
 //! hierarchical oracle ([`Linker::decide`]); otherwise the pair is split like a scalar link.
-//! Links between clusters, or with a cluster on one end, stay scalar (isotropic clusters,
-//! as in hierarchical radiosity).
+//! Links between clusters, or with a cluster on one end, stay scalar (clusters as in
+//! hierarchical radiosity).
 //!
-//! Known cost, as Willmott & Heckbert measured for higher-order bases: a block stores 16
-//! kernels where the hierarchical oracle would often have stopped with one, so a block is
-//! fewer links but more memory (76 bytes against 16) and 16 oracle evaluations; its error
-//! is the pieces' (about half a node's size), the same first order as hierarchical
-//! radiosity.
+//! Cost: a block stores 16 kernels (76 bytes against a link's 16) and costs 16 oracle
+//! evaluations; its error is the pieces' (about half a node's size), the same first order
+//! as hierarchical radiosity. Measured (docs/BENCHMARKS.md): at equal image error on the
+//! Cornell box flatlets hold about half the memory of scalar links in about the same time
+//! (2.53 % in 17.9 MB against 2.72 % in 39.6 MB), unlike the polynomial bases Willmott &
+//! Heckbert found memory-hungry.
 
 use super::link::{Decision, Linker};
 use super::tree::Hierarchy;
@@ -25,7 +26,7 @@ use crate::scene::Rgb;
 pub const PIECES: usize = 4;
 
 /// A flatlet block: piece `a` of `receiver` gathers `kernel[a * PIECES + b] × B(piece b of
-/// sender)`; pieces are [`Linker::pieces`] of each node.
+/// sender)`; pieces are [`pieces`] of each node.
 #[derive(Clone, Copy, Debug)]
 pub struct BlockLink {
     pub receiver: u32,
