@@ -32,6 +32,31 @@ fn kernel_sums(s: &HierarchicalSolver) -> Vec<f64> {
     s.tree.leaf.iter().map(|&l| down[l as usize]).collect()
 }
 
+/// The exact kernel `receiver ← sender`: the average over the receiver's elements of
+/// Lambert's point-to-polygon value summed over the sender's elements (no visibility).
+fn exact_kernel(s: &HierarchicalSolver, receiver: u32, sender: u32) -> f64 {
+    let mesh = &s.problem.mesh;
+    let elements = |n: u32| {
+        let node = &s.tree.nodes[n as usize];
+        &s.tree.order[node.first as usize..(node.first + node.count) as usize]
+    };
+    let receivers = elements(receiver);
+    let mut exact = 0.0;
+    for &r in receivers {
+        let er = &mesh.elements[r as usize];
+        for &e in elements(sender) {
+            let es = &mesh.elements[e as usize];
+            exact += crate::formfactor::contour::point_to_polygon_with_normal(
+                er.centroid,
+                er.normal,
+                es.corners(),
+                es.normal,
+            );
+        }
+    }
+    exact / receivers.len() as f64
+}
+
 fn solver(builtin: &str, config: SolverConfig) -> HierarchicalSolver {
     solver_in(builtin, config, Basis::Haar)
 }
@@ -65,11 +90,6 @@ fn kernels_of_a_closed_box_match_the_exact_integral() {
     };
     let mut s = solver("furnace", config);
     solve(&mut s, 1e-3);
-    let mesh = &s.problem.mesh;
-    let elements = |n: u32| {
-        let node = &s.tree.nodes[n as usize];
-        &s.tree.order[node.first as usize..(node.first + node.count) as usize]
-    };
     let (mut outside, mut worst) = (0usize, 0.0f64);
     // Links into clusters carry normal-incidence irradiance (tested below).
     assert!(
@@ -78,22 +98,7 @@ fn kernels_of_a_closed_box_match_the_exact_integral() {
             .all(|l| !s.tree.nodes[l.receiver as usize].is_cluster())
     );
     for l in &s.links {
-        let receivers = elements(l.receiver);
-        let mut exact = 0.0;
-        for &r in receivers {
-            let er = &mesh.elements[r as usize];
-            for &e in elements(l.sender) {
-                let es = &mesh.elements[e as usize];
-                exact += crate::formfactor::contour::point_to_polygon_with_normal(
-                    er.centroid,
-                    er.normal,
-                    es.corners(),
-                    es.normal,
-                );
-            }
-        }
-        exact /= receivers.len() as f64;
-        let err = (l.kernel as f64 - exact).abs();
+        let err = (l.kernel as f64 - exact_kernel(&s, l.receiver, l.sender)).abs();
         worst = worst.max(err);
         outside += usize::from(err > tolerance);
     }
@@ -208,31 +213,13 @@ fn flatlet_blocks_of_a_closed_box_match_the_exact_integral() {
     let mut s = solver_in("furnace", config, Basis::Flatlet);
     solve(&mut s, 1e-3);
     assert!(!s.blocks.is_empty());
-    let mesh = &s.problem.mesh;
-    let elements = |n: u32| {
-        let node = &s.tree.nodes[n as usize];
-        &s.tree.order[node.first as usize..(node.first + node.count) as usize]
-    };
     let (mut entries, mut outside, mut worst) = (0usize, 0usize, 0.0f64);
     for k in &s.blocks {
         let (pi, ni) = flatlet::pieces(&s.tree, k.receiver);
         let (pj, nj) = flatlet::pieces(&s.tree, k.sender);
         for (a, &p) in pi[..ni].iter().enumerate() {
             for (c, &q) in pj[..nj].iter().enumerate() {
-                let mut exact = 0.0;
-                for &r in elements(p) {
-                    let er = &mesh.elements[r as usize];
-                    for &e in elements(q) {
-                        let es = &mesh.elements[e as usize];
-                        exact += crate::formfactor::contour::point_to_polygon_with_normal(
-                            er.centroid,
-                            er.normal,
-                            es.corners(),
-                            es.normal,
-                        );
-                    }
-                }
-                exact /= elements(p).len() as f64;
+                let exact = exact_kernel(&s, p, q);
                 let err = (k.kernel[a * flatlet::PIECES + c] as f64 - exact).abs();
                 worst = worst.max(err);
                 outside += usize::from(err > tolerance);
