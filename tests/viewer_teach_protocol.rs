@@ -169,3 +169,78 @@ fn the_matrix_view_refuses_too_many_patches() {
     );
     assert!(h.shutdown(Duration::from_secs(30)));
 }
+
+/// Shooting vs gathering and uniform vs adaptive meshing over the thread: the comparison
+/// computes its rows while the viewer's solver stays paused, then takes the steps asked
+/// for, one of each method per step, and plays at its rate until paused; the meshing view
+/// arrives from its own thread with the adaptive mesh smaller than the uniform one.
+#[test]
+fn compare_and_mesh_views_over_the_thread() {
+    use nusselt::viewer::teach::compare::CompareCommand;
+    let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+    let mut h = SolverHandle::spawn(
+        scene,
+        ThreadConfig {
+            solver: SolverConfig {
+                element_size: Some(60.0),
+                patch_size: Some(120.0),
+                ..Default::default()
+            },
+            play: false,
+            ..Default::default()
+        },
+        Box::new(|| {}),
+    )
+    .expect("spawn");
+    let deadline = Instant::now() + Duration::from_secs(240);
+    send(
+        &h,
+        Command::Teach(TeachCommand::Compare(CompareCommand::On { steps: 4 })),
+        deadline,
+    );
+    let four = first_snapshot(&h, deadline, |s| {
+        s.teach_compare
+            .as_ref()
+            .is_some_and(|d| d.rows_done == d.patches && d.steps == 4)
+    });
+    let d = four.teach_compare.clone().expect("comparison");
+    assert_eq!(four.stats.steps, 0, "the viewer's solver must not step");
+    assert_eq!(d.patches, four.geometry.patches);
+    assert_eq!(d.curve.len(), 5, "a point per step and the start");
+    assert_eq!(d.last_gatherer, Some(3), "Gauss-Seidel goes in patch order");
+    assert!(d.last_shooter.is_some());
+    // Play at a high rate: steps go on without commands, and stop on pause.
+    send(
+        &h,
+        Command::Teach(TeachCommand::Compare(CompareCommand::Rate(500.0))),
+        deadline,
+    );
+    send(
+        &h,
+        Command::Teach(TeachCommand::Compare(CompareCommand::Play(true))),
+        deadline,
+    );
+    let played = first_snapshot(&h, deadline, |s| {
+        s.teach_compare.as_ref().is_some_and(|d| d.steps >= 40)
+    });
+    send(
+        &h,
+        Command::Teach(TeachCommand::Compare(CompareCommand::Play(false))),
+        deadline,
+    );
+    let paused = first_snapshot(&h, deadline, |s| {
+        s.seq > played.seq && s.teach_compare.as_ref().is_some_and(|d| !d.playing)
+    });
+    let at = paused.teach_compare.as_ref().map(|d| d.steps);
+    std::thread::sleep(Duration::from_millis(300));
+
+    send(&h, Command::Teach(TeachCommand::Mesh(Some(0.25))), deadline);
+    let meshed = first_snapshot(&h, deadline, |s| s.teach_mesh.is_some());
+    // Paused stays paused while the meshing view runs.
+    assert_eq!(meshed.teach_compare.as_ref().map(|d| d.steps), at);
+    let m = meshed.teach_mesh.clone().expect("meshes");
+    assert_eq!(m.tolerance, 0.25);
+    assert!(m.adaptive.elements < m.uniform.elements);
+    assert!(meshed.teach_mesh_stage.is_none(), "the job is collected");
+    assert!(h.shutdown(Duration::from_secs(30)));
+}

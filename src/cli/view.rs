@@ -21,9 +21,11 @@ pub struct ViewCmdArgs {
     /// Element edge length (scene units); default 1/80 of the scene's diagonal.
     #[arg(long)]
     pub element_size: Option<f64>,
-    /// Teaching mode: open the Teach panel on this view (step: one shot per click with its
-    /// numbers; hemicube: the hemicube at the shooter). Step mode starts paused; with
-    /// --after-shots N it takes N single steps.
+    /// Teaching mode: open the Teach panel on this view: step (one shot per click with its
+    /// numbers), hemicube (the hemicube at the shooter), nusselt (the Nusselt analogue),
+    /// matrix (the form-factor matrix), compare (shooting vs gathering side by side), mesh
+    /// (uniform vs adaptive meshing). The solver starts paused; with --after-shots N step
+    /// mode takes N single steps and compare N steps of each method.
     #[arg(long)]
     pub teach: Option<String>,
     /// With --teach: projector mode (large text, light theme; a toggle in the Teach panel).
@@ -178,7 +180,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
     let teach = match &args.teach {
         Some(name) => Some(TeachView::parse(name).with_context(|| {
             format!(
-                "unknown --teach '{name}' (the views built so far: {})",
+                "unknown --teach '{name}' (the views: {})",
                 TeachView::NAMES.join(", ")
             )
         })?),

@@ -126,10 +126,6 @@ impl ViewerApp {
             show_plot: true,
         };
         let log_frames = options.automation.frame_log.is_some();
-        let teach = options.teach.map(|v| TeachState {
-            projector: options.projector,
-            ..TeachState::new(v)
-        });
         let scripted_steps = match (options.teach, options.automation.screenshot.as_ref()) {
             (Some(_), Some(plan)) => match plan.when {
                 ScreenshotWhen::Shots(n) => n,
@@ -137,6 +133,12 @@ impl ViewerApp {
             },
             _ => 0,
         };
+        let teach = options.teach.map(|v| TeachState {
+            projector: options.projector,
+            // A scripted screenshot of the comparison: its steps (shooting and gathering).
+            compare_steps: scripted_steps,
+            ..TeachState::new(v)
+        });
         let mut app = Self {
             solver,
             snapshot: None,
@@ -442,8 +444,19 @@ impl eframe::App for ViewerApp {
                 teach.matrix_on = false;
                 actions.push(Action::Teach(TeachCommand::Matrix(false)));
             }
+            super::teach::leave_views(teach, &mut actions);
         }
-        egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui, &mut actions));
+        match self.teach.as_mut().filter(|t| t.view.replaces_viewport()) {
+            Some(teach) => {
+                let exposure = self.panel.view.exposure();
+                egui::CentralPanel::default().show(ui, |ui| {
+                    super::teach::central(ui, teach, self.snapshot.as_deref(), exposure);
+                });
+            }
+            None => {
+                egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui, &mut actions));
+            }
+        }
         self.keys(&ctx, &mut actions);
         for a in actions {
             self.handle(&ctx, a);

@@ -239,7 +239,15 @@ impl ViewerApp {
                             s.stats.steps >= n || s.stats.converged || s.stats.limit_reached
                         }
                         ScreenshotWhen::Seconds(t) => since_open.as_secs_f64() >= t,
-                        ScreenshotWhen::Converged => s.stats.converged,
+                        // The side-by-side teaching views run their own solves (the
+                        // viewer's stays paused): ready is when they are done.
+                        ScreenshotWhen::Converged => {
+                            s.stats.converged
+                                || self
+                                    .teach
+                                    .as_ref()
+                                    .is_some_and(|t| t.view.replaces_viewport())
+                        }
                     };
                 if ready {
                     self.shot_state = ShotState::Ready(0);

@@ -232,6 +232,12 @@ pub struct Snapshot {
     pub teach_nusselt: Option<Arc<crate::viewer::teach::nusselt::NusseltDetail>>,
     /// Teaching mode: the form-factor matrix so far and the shooter's column.
     pub teach_matrix: Option<Arc<crate::viewer::teach::matrix::MatrixDetail>>,
+    /// Shooting vs gathering (`--teach compare`).
+    pub teach_compare: Option<Arc<crate::viewer::teach::compare::CompareDetail>>,
+    /// Uniform vs adaptive meshing (`--teach mesh`).
+    pub teach_mesh: Option<Arc<crate::viewer::teach::meshing::MeshDetail>>,
+    /// What the meshing view's job is doing while it runs.
+    pub teach_mesh_stage: Option<&'static str>,
 }
 
 /// Per-drawn-vertex reflectance of the current materials.

@@ -16,6 +16,8 @@ impl Worker {
         self.refresh_hemicube();
         self.refresh_matrix();
         self.refresh_nusselt();
+        self.refresh_compare();
+        self.refresh_mesh_view();
         let (Some(solver), Some(geometry)) = (&self.solver, &self.geometry) else {
             return;
         };
@@ -88,6 +90,9 @@ impl Worker {
             teach_hemicube: self.hemicube_detail.clone(),
             teach_matrix: self.matrix_detail.clone(),
             teach_nusselt: self.nusselt_detail.clone(),
+            teach_compare: self.compare_detail.clone(),
+            teach_mesh: self.mesh_detail.clone(),
+            teach_mesh_stage: self.mesh_job.as_ref().map(|j| j.stage()),
         };
         self.latest.publish(Arc::new(snapshot));
         self.last_publish = Some(now);

@@ -6,8 +6,10 @@ use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use crate::viewer::teach::TeachCommand;
+use crate::viewer::teach::compare::{CompareCommand, CompareWork};
 use crate::viewer::teach::hemicube;
 use crate::viewer::teach::matrix::MatrixWork;
+use crate::viewer::teach::meshing::MeshJob;
 use crate::viewer::teach::step::{Before, capture};
 
 use super::Event;
@@ -40,6 +42,15 @@ impl Worker {
                 if request.is_none() {
                     self.nusselt_detail = None;
                 }
+            }
+            TeachCommand::Compare(c) => self.compare_command(c),
+            TeachCommand::Mesh(tolerance) => {
+                self.mesh_job = None;
+                self.mesh_detail = None;
+                if let Some(t) = tolerance {
+                    self.start_mesh_job(t);
+                }
+                self.dirty = true;
             }
             TeachCommand::Hemicube(request) => {
                 self.hemicube_request = request;
@@ -91,16 +102,95 @@ impl Worker {
         Arc::make_mut(&mut self.history).retain(|p| p.steps <= steps);
     }
 
-    /// Whether the matrix view has rows left to compute (while nothing else runs).
-    pub(super) fn teach_work_pending(&self) -> bool {
-        match (&self.matrix_work, &self.solver) {
-            (Some(w), Some(s)) => !w.complete(s.problem()),
-            _ => false,
+    fn compare_command(&mut self, command: CompareCommand) {
+        match command {
+            CompareCommand::On { steps } => {
+                self.compare_work = None;
+                self.compare_detail = None;
+                if let (Some(s), Some(g)) = (&self.solver, &self.geometry) {
+                    match CompareWork::new(s.problem(), g, &self.scene_camera, steps) {
+                        Ok(w) => self.compare_work = Some(w),
+                        Err(e) => self.send_event(Event::Error(e)),
+                    }
+                }
+            }
+            CompareCommand::Off => {
+                self.compare_work = None;
+                self.compare_detail = None;
+            }
+            other => {
+                if let Some(w) = self.compare_work.as_mut() {
+                    w.apply(other);
+                }
+            }
+        }
+        self.dirty = true;
+    }
+
+    fn start_mesh_job(&mut self, tolerance: f64) {
+        let (Some(solver), Some(geometry)) = (&self.solver, &self.geometry) else {
+            return;
+        };
+        match MeshJob::start(
+            solver.problem().scene.clone(),
+            self.config.clone(),
+            self.scene_camera,
+            geometry.id,
+            tolerance,
+        ) {
+            Ok(job) => self.mesh_job = Some(job),
+            Err(e) => self.send_event(Event::Error(e)),
         }
     }
 
-    /// One row of the matrix view, when the solver has nothing to do.
+    /// How long the thread may wait for a command before teaching work is due (a
+    /// comparison playing at its rate, a meshing job to poll).
+    pub(super) fn teach_wait(&self) -> Option<Duration> {
+        let compare = self
+            .compare_work
+            .as_ref()
+            .and_then(|w| w.wait(Instant::now()));
+        let mesh = self.mesh_job.as_ref().map(|_| Duration::from_millis(100));
+        match (compare, mesh) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    /// Whether a teaching view has work to do now: matrix rows (while nothing else runs),
+    /// comparison rows or steps that are due, a finished meshing job to collect.
+    pub(super) fn teach_work_pending(&self) -> bool {
+        let matrix = match (&self.matrix_work, &self.solver) {
+            (Some(w), Some(s)) => !w.complete(s.problem()),
+            _ => false,
+        };
+        let compare = self.solver.is_some()
+            && self
+                .compare_work
+                .as_ref()
+                .is_some_and(|w| w.pending(Instant::now()));
+        let mesh = self.mesh_job.as_ref().is_some_and(MeshJob::finished);
+        matrix || compare || mesh
+    }
+
+    /// Collects a finished meshing job, advances the comparison, then (when the solver has
+    /// nothing to do) one row of the matrix view.
     pub(super) fn teach_work_once(&mut self) {
+        if self.mesh_job.as_ref().is_some_and(MeshJob::finished)
+            && let Some(job) = self.mesh_job.take()
+        {
+            match job.join() {
+                Ok(d) => self.mesh_detail = Some(Arc::new(d)),
+                Err(e) => self.send_event(Event::Error(e)),
+            }
+            self.dirty = true;
+        }
+        if let (Some(w), Some(s)) = (self.compare_work.as_mut(), &self.solver)
+            && w.pending(Instant::now())
+        {
+            w.work(s.problem(), &self.cancel);
+            self.dirty = true;
+        }
         if self.wants_to_step() || !self.teach_work_pending() {
             return;
         }
@@ -147,6 +237,47 @@ impl Worker {
         if due {
             self.matrix_detail = Some(Arc::new(work.detail(solver.problem(), geometry, shooter)));
             self.matrix_published = Some((Instant::now(), done, shooter));
+        }
+    }
+
+    /// Publishes the comparison when it changed; starts it again on a new mesh.
+    pub(super) fn refresh_compare(&mut self) {
+        let (Some(work), Some(solver), Some(geometry)) =
+            (self.compare_work.as_mut(), &self.solver, &self.geometry)
+        else {
+            return;
+        };
+        if work.geometry_id != geometry.id {
+            match CompareWork::new(solver.problem(), geometry, &self.scene_camera, 0) {
+                Ok(w) => *work = w,
+                Err(e) => {
+                    self.compare_work = None;
+                    self.compare_detail = None;
+                    self.send_event(Event::Error(e));
+                    return;
+                }
+            }
+        }
+        if work.changed {
+            self.compare_detail = Some(Arc::new(work.detail()));
+        }
+    }
+
+    /// Starts the meshing view again when the viewer's mesh changed under it.
+    pub(super) fn refresh_mesh_view(&mut self) {
+        let Some(geometry) = &self.geometry else {
+            return;
+        };
+        let id = geometry.id;
+        let stale_job = self.mesh_job.as_ref().filter(|j| j.geometry_id != id);
+        let stale_detail = self.mesh_detail.as_ref().filter(|d| d.geometry_id != id);
+        let tolerance = stale_job
+            .map(|j| j.tolerance)
+            .or(stale_detail.map(|d| d.tolerance));
+        if let Some(t) = tolerance {
+            self.mesh_job = None;
+            self.mesh_detail = None;
+            self.start_mesh_job(t);
         }
     }
 

@@ -13,8 +13,10 @@ use crate::scene::{LoadOptions, Material, MaterialId, Rgb, Scene};
 use crate::solver::{Problem, Solver, SolverConfig, SolverKind};
 
 use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, vertex_reflectance};
+use super::super::teach::compare::{CompareDetail, CompareWork};
 use super::super::teach::hemicube::{HemicubeDetail, HemicubeRequest};
 use super::super::teach::matrix::{MatrixDetail, MatrixWork};
+use super::super::teach::meshing::{MeshDetail, MeshJob};
 use super::super::teach::nusselt::{NusseltDetail, NusseltRequest};
 use super::super::teach::step::{Before, StepDetail};
 use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
@@ -75,6 +77,12 @@ pub(super) struct Worker {
     pub(super) matrix_work: Option<MatrixWork>,
     pub(super) matrix_detail: Option<Arc<MatrixDetail>>,
     pub(super) matrix_published: Option<(Instant, usize, Option<u32>)>,
+    /// Shooting vs gathering: the comparison run, and what was last published of it.
+    pub(super) compare_work: Option<CompareWork>,
+    pub(super) compare_detail: Option<Arc<CompareDetail>>,
+    /// Uniform vs adaptive meshing: the job computing it, and its result.
+    pub(super) mesh_job: Option<MeshJob>,
+    pub(super) mesh_detail: Option<Arc<MeshDetail>>,
 }
 
 enum Flow {
@@ -132,6 +140,10 @@ impl Worker {
             matrix_work: None,
             matrix_detail: None,
             matrix_published: None,
+            compare_work: None,
+            compare_detail: None,
+            mesh_job: None,
+            mesh_detail: None,
         }
     }
 
@@ -154,9 +166,14 @@ impl Worker {
                     }
                     // Wake up now and then even if idle so a lost waker cannot stall
                     // anything; no work is done on these wake-ups.
-                    match self.rx.recv_timeout(Duration::from_millis(500)) {
+                    let wait = self.teach_wait().unwrap_or(Duration::from_millis(500));
+                    match self.rx.recv_timeout(wait) {
                         Ok(c) => c,
-                        Err(RecvTimeoutError::Timeout) => continue,
+                        Err(RecvTimeoutError::Timeout) => {
+                            // The meshing view's job reports its stage.
+                            self.dirty |= self.mesh_job.is_some();
+                            continue;
+                        }
                         Err(RecvTimeoutError::Disconnected) => return,
                     }
                 };

@@ -14,15 +14,27 @@
 //!   and scaled copies with the same projection (drawn by `nusselt_panel.rs`);
 //! - [`matrix`]: the scene coloured by the shooter's column `F_ij` (log scale, legend) and
 //!   the patch-level matrix as an image, filled a row at a time while the solver is idle,
-//!   with its sparsity and storage (drawn by `matrix_panel.rs`).
+//!   with its sparsity and storage (drawn by `matrix_panel.rs`);
+//! - [`compare`]: progressive shooting (with the ambient term) and Gauss-Seidel gathering
+//!   on the same patch system, a step of each at a time, in two images with their error
+//!   curves (drawn by `compare_panel.rs`, in place of the viewport);
+//! - [`meshing`]: the uniform mesh and an adaptive one side by side, with element counts
+//!   (drawn by `meshing_panel.rs`, in place of the viewport).
+//!
+//! The last two draw small CPU images from an item buffer ([`item_image`]).
 //!
 //! The data is computed where the problem is, on the solver thread, on request
 //! ([`TeachCommand`]), and published with the snapshot like everything else.
 
+pub mod compare;
+mod compare_panel;
 pub mod hemicube;
 mod hemicube_panel;
+pub mod item_image;
 pub mod matrix;
 mod matrix_panel;
+pub mod meshing;
+mod meshing_panel;
 pub mod nusselt;
 mod nusselt_panel;
 pub mod step;
@@ -40,11 +52,14 @@ pub enum TeachView {
     Hemicube,
     Nusselt,
     Matrix,
+    Compare,
+    Mesh,
 }
 
 impl TeachView {
     /// The views built so far, as `--teach` spells them.
-    pub const NAMES: &'static [&'static str] = &["step", "hemicube", "nusselt", "matrix"];
+    pub const NAMES: &'static [&'static str] =
+        &["step", "hemicube", "nusselt", "matrix", "compare", "mesh"];
 
     pub fn parse(name: &str) -> Option<TeachView> {
         match name {
@@ -52,6 +67,8 @@ impl TeachView {
             "hemicube" => Some(TeachView::Hemicube),
             "nusselt" => Some(TeachView::Nusselt),
             "matrix" => Some(TeachView::Matrix),
+            "compare" => Some(TeachView::Compare),
+            "mesh" => Some(TeachView::Mesh),
             _ => None,
         }
     }
@@ -62,7 +79,14 @@ impl TeachView {
             TeachView::Hemicube => "hemicube",
             TeachView::Nusselt => "nusselt",
             TeachView::Matrix => "matrix",
+            TeachView::Compare => "compare",
+            TeachView::Mesh => "mesh",
         }
+    }
+
+    /// Views drawn in place of the 3-D viewport (two images side by side).
+    pub fn replaces_viewport(self) -> bool {
+        matches!(self, TeachView::Compare | TeachView::Mesh)
     }
 }
 
@@ -81,6 +105,10 @@ pub enum TeachCommand {
     Nusselt(Option<nusselt::NusseltRequest>),
     /// Fill the form-factor matrix while idle and publish it (on), or drop it (off).
     Matrix(bool),
+    /// Shooting vs gathering.
+    Compare(compare::CompareCommand),
+    /// Compute uniform vs adaptive meshing with this tolerance (`None`: drop it).
+    Mesh(Option<f64>),
 }
 
 /// The Teach panel's own state (UI side).
@@ -108,6 +136,17 @@ pub struct TeachState {
     /// Colour the scene by the shooter's column (matrix view).
     pub show_column: bool,
     pub(super) matrix_texture: matrix_panel::Texture,
+    /// The comparison was asked for (with the steps of a scripted screenshot).
+    pub compare_on: bool,
+    pub compare_steps: usize,
+    /// Show shooting with its ambient term.
+    pub compare_ambient: bool,
+    pub(super) compare_textures: compare_panel::Textures,
+    /// The adaptive tolerance of the meshing view, the one asked for, and its textures.
+    pub mesh_tolerance: f64,
+    pub mesh_sent: Option<f64>,
+    pub mesh_edges: bool,
+    pub(super) mesh_textures: meshing_panel::Textures,
 }
 
 impl TeachState {
@@ -125,6 +164,14 @@ impl TeachState {
             matrix_on: false,
             show_column: true,
             matrix_texture: Default::default(),
+            compare_on: false,
+            compare_steps: 0,
+            compare_ambient: true,
+            compare_textures: Default::default(),
+            mesh_tolerance: meshing::DEFAULT_TOLERANCE,
+            mesh_sent: None,
+            mesh_edges: true,
+            mesh_textures: Default::default(),
         }
     }
 }
@@ -159,7 +206,35 @@ pub fn teach_panel(
         TeachView::Hemicube => hemicube_panel::show(ui, state, s, selection, actions),
         TeachView::Nusselt => nusselt_panel::show(ui, state, s, selection, actions),
         TeachView::Matrix => matrix_panel::show(ui, state, s, actions),
+        TeachView::Compare => compare_panel::show(ui, state, s, actions),
+        TeachView::Mesh => meshing_panel::show(ui, state, s, actions),
     });
+}
+
+/// The views that replace the viewport draw there (see [`TeachView::replaces_viewport`]).
+pub fn central(ui: &mut egui::Ui, state: &mut TeachState, snap: Option<&Snapshot>, exposure: f32) {
+    let Some(s) = snap else {
+        ui.label("Building the mesh…");
+        return;
+    };
+    match state.view {
+        TeachView::Compare => compare_panel::central(ui, state, s, exposure),
+        TeachView::Mesh => meshing_panel::central(ui, state, s, exposure),
+        _ => {}
+    }
+}
+
+/// Commands that turn off what a view asked for once another view is chosen.
+pub fn leave_views(state: &mut TeachState, actions: &mut Vec<Action>) {
+    if state.view != TeachView::Compare && state.compare_on {
+        state.compare_on = false;
+        actions.push(Action::Teach(TeachCommand::Compare(
+            compare::CompareCommand::Off,
+        )));
+    }
+    if state.view != TeachView::Mesh && state.mesh_sent.take().is_some() {
+        actions.push(Action::Teach(TeachCommand::Mesh(None)));
+    }
 }
 
 /// Whether the view on screen shows the state of `s` (for a scripted screenshot): the
@@ -180,5 +255,10 @@ pub fn ready(state: Option<&TeachState>, s: &Snapshot) -> bool {
             .teach_matrix
             .as_ref()
             .is_some_and(|d| d.rows_done == d.patches && d.shooter.is_some_and(at_shooter)),
+        TeachView::Compare => s
+            .teach_compare
+            .as_ref()
+            .is_some_and(|d| d.rows_done == d.patches && d.steps >= state.compare_steps),
+        TeachView::Mesh => s.teach_mesh.is_some(),
     }
 }
