@@ -4,7 +4,9 @@
 //! view draws the item buffer (both the red and the green wall appear on the right of the
 //! window, where the plain view shows only the green one); the matrix view colours the
 //! scene by the shooter's column (heat-scale yellow, which the lit scene never is); the
-//! Nusselt view draws the projection's cyan outline. The
+//! Nusselt view draws the projection's cyan outline; the compare view draws the lit
+//! shooting image beside the still mostly dark gathering one; the mesh view draws two
+//! different meshes of the lit box. The
 //! numbers the views show are tested against the solver in the unit tests of
 //! `viewer::teach::{step, hemicube, nusselt, matrix}`.
 //!
@@ -31,6 +33,17 @@ fn difference(a: &Picture, b: &Picture, x0: f64, x1: f64) -> f64 {
         }
     }
     sum / n
+}
+
+/// Mean brightness (0…1) of the window region [x0, x1) × [y0, y1) (fractions).
+fn brightness(p: &Picture, (x0, x1): (f64, f64), (y0, y1): (f64, f64)) -> f64 {
+    let cols = (x0 * p.width as f64) as usize..(x1 * p.width as f64) as usize;
+    let rows = (y0 * p.height as f64) as usize..(y1 * p.height as f64) as usize;
+    let n = (cols.len() * rows.len()) as f64;
+    rows.flat_map(|y| cols.clone().map(move |x| (x, y)))
+        .map(|(x, y)| p.rgb[y * p.width + x].iter().sum::<f64>() / 3.0)
+        .sum::<f64>()
+        / n
 }
 
 /// Pixels in the columns [x0, x1) that are clearly red, and clearly green.
@@ -106,6 +119,13 @@ fn teach_screenshots_show_each_view() {
         "nusselt",
         &with(&["--teach", "nusselt", "--after-shots", "1"]),
     );
+    let (compare, _) = run_viewer_with(
+        &display,
+        dir.path(),
+        "compare",
+        &with(&["--teach", "compare", "--after-shots", "20"]),
+    );
+    let (mesh, _) = run_viewer_with(&display, dir.path(), "mesh", &with(&["--teach", "mesh"]));
     let (_, plain_viewport) = run_viewer_with(
         &display,
         dir.path(),
@@ -180,4 +200,49 @@ fn teach_screenshots_show_each_view() {
         ym > 0.03 && yp < 0.005,
         "no column colours: {ym} vs plain {yp}"
     );
+    // Compare and mesh draw two images side by side where the viewport was (1200×700:
+    // the left image spans about 26–45 % of the width, the right one 48–67 %, the top
+    // 9–40 % of the height). After 20 of 133 steps shooting has lit the box; gathering
+    // has updated 20 patches of the floor.
+    let (left, right, rows) = ((0.27, 0.44), (0.49, 0.66), (0.10, 0.38));
+    let compare = Picture::load(&compare);
+    let (shoot, gather) = (
+        brightness(&compare, left, rows),
+        brightness(&compare, right, rows),
+    );
+    eprintln!("compare: shooting image {shoot:.3}, gathering image {gather:.3}");
+    assert!(
+        shoot > 0.15 && shoot > 2.0 * gather,
+        "shooting should be lit and gathering mostly dark: {shoot} vs {gather}"
+    );
+    let mesh = Picture::load(&mesh);
+    let (uniform, adaptive) = (
+        brightness(&mesh, left, rows),
+        brightness(&mesh, right, rows),
+    );
+    let meshes_differ = difference_in(&mesh, left, right, rows);
+    eprintln!("mesh: uniform {uniform:.3}, adaptive {adaptive:.3}, differ by {meshes_differ:.3}");
+    assert!(uniform > 0.15 && adaptive > 0.15, "{uniform} {adaptive}");
+    assert!(
+        meshes_differ > 0.02,
+        "the two meshes look the same: {meshes_differ}"
+    );
+}
+
+/// Mean absolute difference between two equally wide column ranges of one picture.
+fn difference_in(p: &Picture, a: (f64, f64), b: (f64, f64), (y0, y1): (f64, f64)) -> f64 {
+    let w = ((a.1 - a.0) * p.width as f64) as usize;
+    let (xa, xb) = (
+        (a.0 * p.width as f64) as usize,
+        (b.0 * p.width as f64) as usize,
+    );
+    let rows = (y0 * p.height as f64) as usize..(y1 * p.height as f64) as usize;
+    let n = (w * rows.len()) as f64;
+    rows.flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let (c, d) = (p.rgb[y * p.width + xa + x], p.rgb[y * p.width + xb + x]);
+            (0..3).map(|k| (c[k] - d[k]).abs()).sum::<f64>() / 3.0
+        })
+        .sum::<f64>()
+        / n
 }

@@ -449,9 +449,13 @@ impl eframe::App for ViewerApp {
         match self.teach.as_mut().filter(|t| t.view.replaces_viewport()) {
             Some(teach) => {
                 let exposure = self.panel.view.exposure();
-                egui::CentralPanel::default().show(ui, |ui| {
-                    super::teach::central(ui, teach, self.snapshot.as_deref(), exposure);
-                });
+                // The central area stands for the viewport (`--viewport-png` crops it).
+                self.viewport_rect = egui::CentralPanel::default()
+                    .show(ui, |ui| {
+                        super::teach::central(ui, teach, self.snapshot.as_deref(), exposure);
+                    })
+                    .response
+                    .rect;
             }
             None => {
                 egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui, &mut actions));
