@@ -36,6 +36,7 @@ mod matrix_panel;
 pub mod meshing;
 mod meshing_panel;
 pub mod nusselt;
+mod nusselt_3d;
 mod nusselt_panel;
 pub mod step;
 mod step_panel;
@@ -131,6 +132,8 @@ pub struct TeachState {
     pub projector_applied: bool,
     /// The Nusselt request last sent.
     pub nusselt_sent: Option<nusselt::NusseltRequest>,
+    /// How the 3-D Nusselt drawing is turned.
+    pub(super) nusselt_view: nusselt_3d::View3d,
     /// The matrix view asked the solver thread to fill the matrix.
     pub matrix_on: bool,
     /// Colour the scene by the shooter's column (matrix view).
@@ -161,6 +164,7 @@ impl TeachState {
             projector: false,
             projector_applied: false,
             nusselt_sent: None,
+            nusselt_view: Default::default(),
             matrix_on: false,
             show_column: true,
             matrix_texture: Default::default(),

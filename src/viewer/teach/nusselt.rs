@@ -49,6 +49,9 @@ pub struct NusseltDetail {
     pub exact: f64,
     /// `(scale, exact F)` of the copies scaled about the point.
     pub copies: Vec<(f64, f64)>,
+    /// The patch's corners relative to the point, in its frame (tangent, bitangent,
+    /// normal), for the 3-D drawing.
+    pub patch_local: Vec<[f64; 3]>,
 }
 
 /// Where the ray from `o` along `d` meets convex polygon `poly` (in front of `o`).
@@ -157,6 +160,7 @@ pub fn compute(
         sigma,
         exact: exact_to(&pj.polygon),
         copies,
+        patch_local: pj.polygon.iter().map(|c| local(*c - origin)).collect(),
     })
 }
 

@@ -61,6 +61,10 @@ pub(super) fn show(
         egui::Stroke::new(2.0, egui::Color32::from_rgb(0, 220, 255)),
     ));
     ui.label("Cyan: the projection's outline; yellow: sample points inside it.");
+    ui.separator();
+    ui.label("The same in 3-D: the patch, its projection on the hemisphere (yellow), dropped onto the disk (cyan).");
+    let side = (ui.available_width() - 8.0).clamp(160.0, 360.0);
+    super::nusselt_3d::draw(ui, &d, &mut state.nusselt_view, side);
     egui::Grid::new("teach-nusselt")
         .num_columns(2)
         .show(ui, |ui| {
