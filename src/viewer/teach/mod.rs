@@ -38,6 +38,8 @@ mod meshing_panel;
 pub mod nusselt;
 mod nusselt_3d;
 mod nusselt_panel;
+#[cfg(test)]
+mod panel_tests;
 pub mod step;
 mod step_panel;
 
