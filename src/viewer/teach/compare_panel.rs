@@ -146,7 +146,8 @@ pub(super) fn show(
         "Error: Σ A_p |B_p − B*_p| / Σ A_p B*_p against the converged answer of the same \
          matrix (the iteration's error, not the mesh's). Notice: after a few steps shooting \
          has sent the lights' power everywhere, while gathering has updated only the first \
-         patches; a full sweep later Gauss-Seidel catches up.",
+         patches. After a sweep Gauss-Seidel shows the whole room too, but shooting stays \
+         ahead: it always sends the largest unshot power next.",
     );
 }
 

@@ -49,6 +49,8 @@ pub struct MeshSide {
     pub seconds: f64,
     /// Radiance per element.
     pub radiance: Vec<[f32; 3]>,
+    /// Area per element.
+    pub area: Vec<f32>,
     pub image: ItemImage,
 }
 
@@ -162,6 +164,7 @@ fn side(
         largest: areas.fold(0.0, f64::max),
         seconds: start.elapsed().as_secs_f64(),
         radiance: radiance.iter().map(|c| c.as_vec3().to_array()).collect(),
+        area: mesh.elements.iter().map(|e| e.area as f32).collect(),
         image,
     })
 }
@@ -236,6 +239,7 @@ mod tests {
             let seen = s.image.element.iter().filter(|&&e| e != u32::MAX).count();
             assert!(seen > s.image.element.len() / 2);
             assert_eq!(s.radiance.len(), s.elements);
+            assert_eq!(s.area.len(), s.elements);
         }
     }
 }

@@ -15,7 +15,7 @@ use super::{TeachCommand, TeachState};
 #[derive(Default)]
 pub(in crate::viewer) struct Textures {
     detail: Option<Arc<MeshDetail>>,
-    key: Option<(u32, bool)>,
+    key: Option<(u32, bool, bool)>,
     uniform: Option<egui::TextureHandle>,
     adaptive: Option<egui::TextureHandle>,
 }
@@ -65,6 +65,10 @@ pub(super) fn show(
         send(state);
     }
     ui.checkbox(&mut state.mesh_edges, "draw the element edges");
+    ui.checkbox(
+        &mut state.mesh_sizes,
+        "colour by element size (heat scale: small elements bright)",
+    );
     if let Some(stage) = s.teach_mesh_stage {
         ui.horizontal(|ui| {
             ui.spinner();
@@ -92,19 +96,40 @@ pub(super) fn show(
         row("mesh + solve", &|m| format!("{:.1} s", m.seconds));
     });
     ui.label(format!(
-        "The adaptive mesh has {:.0} % of the uniform one's elements. Notice where it \
-         refined: under the light, along the blocks' shadows and where the blocks stand \
-         on the floor; large flat walls stay coarse.",
+        "The adaptive mesh has {:.0} % of the uniform one's elements. Colour by element \
+         size and look where it refined (near the light, along the blocks' edges and \
+         shadows, in the corners) and where it stayed coarse (the middle of the walls).",
         100.0 * d.adaptive.elements as f64 / d.uniform.elements.max(1) as f64
     ));
 }
 
-fn image(side: &MeshSide, edges: bool, exposure: f32) -> egui::ColorImage {
+fn image(
+    side: &MeshSide,
+    edges: bool,
+    sizes: bool,
+    range: (f32, f32),
+    exposure: f32,
+) -> egui::ColorImage {
+    // Element size on a log heat scale from the largest (dark) to the smallest (white).
+    let (small, large) = range;
+    let size_colour = |a: f32| {
+        let t = if large > small {
+            ((large / a.max(small)).ln() / (large / small).ln()).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        super::matrix::heat(0.15 + 0.85 * f64::from(t)).map(|c| (c * 255.0) as u8)
+    };
     let px = side.image.paint(
         |e| {
-            side.radiance
-                .get(e as usize)
-                .map_or([0, 0, 0], |c| c.map(|x| srgb8(x, exposure)))
+            let e = e as usize;
+            if sizes {
+                side.area.get(e).map_or([0, 0, 0], |a| size_colour(*a))
+            } else {
+                side.radiance
+                    .get(e)
+                    .map_or([0, 0, 0], |c| c.map(|x| srgb8(x, exposure)))
+            }
         },
         edges.then_some([40, 40, 40]),
     );
@@ -126,19 +151,36 @@ pub(super) fn central(ui: &mut egui::Ui, state: &mut TeachState, s: &Snapshot, e
         });
         return;
     };
-    let key = (exposure.to_bits(), state.mesh_edges);
+    let key = (exposure.to_bits(), state.mesh_edges, state.mesh_sizes);
+    // One size scale for both meshes.
+    let range = (
+        d.uniform.smallest.min(d.adaptive.smallest) as f32,
+        d.uniform.largest.max(d.adaptive.largest) as f32,
+    );
     let t = &mut state.mesh_textures;
     if t.detail.as_ref().is_none_or(|old| !Arc::ptr_eq(old, &d)) || t.key != Some(key) {
         let opts = egui::TextureOptions::NEAREST;
         let ctx = ui.ctx();
         t.uniform = Some(ctx.load_texture(
             "mesh-uniform",
-            image(&d.uniform, state.mesh_edges, exposure),
+            image(
+                &d.uniform,
+                state.mesh_edges,
+                state.mesh_sizes,
+                range,
+                exposure,
+            ),
             opts,
         ));
         t.adaptive = Some(ctx.load_texture(
             "mesh-adaptive",
-            image(&d.adaptive, state.mesh_edges, exposure),
+            image(
+                &d.adaptive,
+                state.mesh_edges,
+                state.mesh_sizes,
+                range,
+                exposure,
+            ),
             opts,
         ));
         t.detail = Some(d.clone());

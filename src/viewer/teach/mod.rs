@@ -151,6 +151,8 @@ pub struct TeachState {
     pub mesh_tolerance: f64,
     pub mesh_sent: Option<f64>,
     pub mesh_edges: bool,
+    /// Colour the meshes by element size instead of radiance.
+    pub mesh_sizes: bool,
     pub(super) mesh_textures: meshing_panel::Textures,
 }
 
@@ -177,6 +179,7 @@ impl TeachState {
             mesh_tolerance: meshing::DEFAULT_TOLERANCE,
             mesh_sent: None,
             mesh_edges: true,
+            mesh_sizes: false,
             mesh_textures: Default::default(),
         }
     }

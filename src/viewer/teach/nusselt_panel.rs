@@ -42,7 +42,7 @@ pub(super) fn show(
         "Project the patch onto the unit hemisphere around the point, then straight down \
          onto its base disk: F = projected area / π.",
     );
-    let side = (ui.available_width() - 8.0).clamp(120.0, 320.0);
+    let side = (ui.available_width() - 8.0).clamp(120.0, 240.0);
     let (rect, _) = ui.allocate_exact_size(egui::vec2(side, side), egui::Sense::hover());
     let painter = ui.painter_at(rect);
     let centre = rect.center();
@@ -61,10 +61,7 @@ pub(super) fn show(
         egui::Stroke::new(2.0, egui::Color32::from_rgb(0, 220, 255)),
     ));
     ui.label("Cyan: the projection's outline; yellow: sample points inside it.");
-    ui.separator();
-    ui.label("The same in 3-D: the patch, its projection on the hemisphere (yellow), dropped onto the disk (cyan).");
-    let side = (ui.available_width() - 8.0).clamp(160.0, 360.0);
-    super::nusselt_3d::draw(ui, &d, &mut state.nusselt_view, side);
+
     egui::Grid::new("teach-nusselt")
         .num_columns(2)
         .show(ui, |ui| {
@@ -94,4 +91,8 @@ pub(super) fn show(
         "The scaled copies are nearer or farther but have the same projection: the same \
          form factor. (Occlusion is left out here; the hemicube adds it.)",
     );
+    ui.separator();
+    ui.label("The same in 3-D: the patch, its projection on the hemisphere (yellow), dropped onto the disk (cyan).");
+    let side = (ui.available_width() - 8.0).clamp(160.0, 300.0);
+    super::nusselt_3d::draw(ui, &d, &mut state.nusselt_view, side);
 }
