@@ -407,10 +407,10 @@ fn view_solver_flags_are_checked() {
     refused(
         &with(&["--solver", "sor", "--omega", "2.5"]),
         "--omega must be in (0, 2)",
-    ); // Teaching views: only those built are accepted, and the message lists them.
+    ); // Teaching views: an unknown one is refused, and the message lists them.
     refused(
         &with(&["--teach", "lecture"]),
-        "unknown --teach 'lecture' (the views built so far: step, hemicube",
+        "unknown --teach 'lecture' (the views: step, hemicube",
     );
     refused(&with(&["--projector"]), "--teach");
 }
