@@ -79,6 +79,11 @@ pub struct ViewCmdArgs {
     /// Don't highlight the shooting patch.
     #[arg(long)]
     pub no_highlight: bool,
+    /// Start with the ray-traced view on (the second pass: direct light per pixel, the
+    /// indirect rest from the solution, refined progressively; a toggle in the Display
+    /// section). With --screenshot, the shot waits for 16 samples per pixel.
+    #[arg(long)]
+    pub ray_traced: bool,
     /// Exposure in stops.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub exposure: f32,
@@ -256,6 +261,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
             ambient: !args.no_ambient,
             exposure_stops: args.exposure,
             highlight_shooter: !args.no_highlight,
+            ray_traced: args.ray_traced,
             paused: args.paused,
             no_vsync: args.no_vsync,
             solver_threads: args.solver_threads,

@@ -57,6 +57,8 @@ pub struct ViewerApp {
     persist: bool,
     /// Teaching mode's panel (`--teach`).
     pub(super) teach: Option<TeachState>,
+    /// The ray-traced view's thread and image (`ray_view.rs`).
+    pub(super) ray: super::ray_view::RayView,
 }
 
 /// The solver thread's settings for these options.
@@ -109,6 +111,7 @@ impl ViewerApp {
                 element_edges: options.wireframe,
                 patch_outlines: options.patch_outlines,
                 highlight_shooter: options.highlight_shooter,
+                ray_traced: options.ray_traced,
             },
             element_size: options.element_size.unwrap_or(0.0),
             element_size_text: String::new(),
@@ -165,6 +168,7 @@ impl ViewerApp {
             outcome,
             persist,
             teach,
+            ray: Default::default(),
         };
         if app.teach.is_some() {
             app.solver

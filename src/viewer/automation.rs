@@ -234,6 +234,7 @@ impl ViewerApp {
                     self.auto.edits.is_empty() || (self.edits_sent && self.edit_latency.is_empty());
                 let ready = edits_done
                     && super::teach::ready(self.teach.as_ref(), s)
+                    && self.ray_ready(super::ray_view::SCREENSHOT_SPP)
                     && match plan.when {
                         ScreenshotWhen::Shots(n) => {
                             s.stats.steps >= n || s.stats.converged || s.stats.limit_reached

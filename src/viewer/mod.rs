@@ -25,6 +25,8 @@ pub mod export;
 mod files;
 pub mod frame_log;
 mod panels;
+mod ray_view;
+pub mod raytrace;
 pub mod render;
 pub mod snapshot;
 pub mod solver_thread;
@@ -66,6 +68,8 @@ pub struct UiOptions {
     /// Exposure in stops.
     pub exposure_stops: f32,
     pub highlight_shooter: bool,
+    /// Start with the ray-traced view on.
+    pub ray_traced: bool,
     /// Start paused.
     pub paused: bool,
     /// Present without waiting for vertical sync.

@@ -53,6 +53,8 @@ pub struct ViewSettings {
     pub element_edges: bool,
     pub patch_outlines: bool,
     pub highlight_shooter: bool,
+    /// Show the ray-traced view (`ray_view.rs`) over the viewport.
+    pub ray_traced: bool,
 }
 
 impl ViewSettings {
@@ -294,6 +296,11 @@ fn display_section(ui: &mut egui::Ui, state: &mut PanelState, actions: &mut Vec<
     ui.checkbox(&mut v.element_edges, "element wireframe");
     ui.checkbox(&mut v.patch_outlines, "patch outlines");
     ui.checkbox(&mut v.highlight_shooter, "highlight shooter");
+    ui.checkbox(&mut v.ray_traced, "ray-traced view")
+        .on_hover_text(
+            "the second pass: direct light per pixel with exact shadows, the indirect rest from \
+         the solution; refines while the camera rests",
+        );
     ui.horizontal(|ui| {
         if ui.button("Frame scene").clicked() {
             actions.push(Action::FrameScene);

@@ -238,6 +238,8 @@ pub struct Snapshot {
     pub teach_mesh: Option<Arc<crate::viewer::teach::meshing::MeshDetail>>,
     /// What the meshing view's job is doing while it runs.
     pub teach_mesh_stage: Option<&'static str>,
+    /// What the ray-traced view renders, while it is on.
+    pub ray_input: Option<Arc<crate::viewer::raytrace::RenderInput>>,
 }
 
 /// Per-drawn-vertex reflectance of the current materials.

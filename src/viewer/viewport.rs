@@ -132,6 +132,8 @@ impl ViewerApp {
                 },
             },
         ));
+        let moving = response.dragged() || ui.input(|i| i.smooth_scroll_delta.y != 0.0);
+        self.ray_view(ui, rect, &snap, moving, actions);
         // Hovered files: a hint.
         if ui.input(|i| !i.raw.hovered_files.is_empty()) {
             ui.painter().text(

@@ -20,6 +20,7 @@
 //! at once so light shows up immediately.
 
 mod publish;
+mod ray_input;
 mod switch;
 mod teach;
 mod worker;
@@ -74,6 +75,9 @@ pub enum Command {
     SetSolver(SolverKind),
     /// Teaching mode's requests (`viewer::teach`).
     Teach(crate::viewer::teach::TeachCommand),
+    /// Publish what the ray-traced view renders ([`crate::viewer::raytrace::RenderInput`])
+    /// with the snapshots (on), or stop (off).
+    RayTraced(bool),
     /// Load an OBJ file; on error the current scene stays.
     LoadPath(PathBuf),
     /// Replace the scene with one loaded elsewhere.

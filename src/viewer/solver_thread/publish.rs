@@ -18,6 +18,7 @@ impl Worker {
         self.refresh_nusselt();
         self.refresh_compare();
         self.refresh_mesh_view();
+        self.refresh_ray_input();
         let (Some(solver), Some(geometry)) = (&self.solver, &self.geometry) else {
             return;
         };
@@ -93,6 +94,7 @@ impl Worker {
             teach_compare: self.compare_detail.clone(),
             teach_mesh: self.mesh_detail.clone(),
             teach_mesh_stage: self.mesh_job.as_ref().map(|j| j.stage()),
+            ray_input: self.ray_input.clone(),
         };
         self.latest.publish(Arc::new(snapshot));
         self.last_publish = Some(now);

@@ -83,6 +83,12 @@ pub(super) struct Worker {
     /// Uniform vs adaptive meshing: the job computing it, and its result.
     pub(super) mesh_job: Option<MeshJob>,
     pub(super) mesh_detail: Option<Arc<MeshDetail>>,
+    /// The ray-traced view is on: publish its input (`ray_input.rs`), taken for this
+    /// (steps, mesh, materials) at this time.
+    pub(super) ray_input_on: bool,
+    pub(super) ray_input: Option<Arc<crate::viewer::raytrace::RenderInput>>,
+    pub(super) ray_input_key: Option<(usize, u64, u64)>,
+    pub(super) ray_input_at: Option<Instant>,
 }
 
 enum Flow {
@@ -144,6 +150,10 @@ impl Worker {
             compare_detail: None,
             mesh_job: None,
             mesh_detail: None,
+            ray_input_on: false,
+            ray_input: None,
+            ray_input_key: None,
+            ray_input_at: None,
         }
     }
 
@@ -400,6 +410,13 @@ impl Worker {
             Command::SetMethod(method) => self.set_method(method),
             Command::SetSolver(kind) => self.set_solver(kind),
             Command::Teach(t) => self.teach(t),
+            Command::RayTraced(on) => {
+                self.ray_input_on = on;
+                if !on {
+                    self.ray_input = None;
+                    self.ray_input_key = None;
+                }
+            }
             Command::LoadPath(path) => match Scene::load_obj(&path, &LoadOptions::default()) {
                 Ok(scene) => self.load(scene),
                 Err(e) => self.send_event(Event::Error(e.to_string())),
