@@ -113,3 +113,58 @@ fn a_gauss_seidel_screenshot_is_lit_like_shootings() {
     // Lit by interreflection, not only the light: the walls are far from black.
     assert!(lum(m) > 0.1, "middle third too dark: {m:?}");
 }
+
+/// The ray-traced view (`--ray-traced`, the second pass refined on its own thread) is drawn
+/// over the viewport: the screenshot waits for 16 samples per pixel of the converged
+/// solution, shows the same lit box as the rasterised view (red left, green right, about
+/// as bright: the same solution, the direct part computed per pixel), and differs from it
+/// (per-pixel shadows and shading instead of interpolated elements).
+#[test]
+fn the_ray_traced_view_shows_the_same_box_per_pixel() {
+    if !vulkan_driver_present() {
+        skip("no Vulkan driver (install mesa-vulkan-drivers for lavapipe)");
+        return;
+    }
+    let display = match display() {
+        Ok(d) => d,
+        Err(reason) => {
+            skip(&reason);
+            return;
+        }
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let common = ["--element-size", "40", "--window", "700x500"];
+    let (_, plain) = run_viewer_with(&display, dir.path(), "raster", &common);
+    let with: Vec<&str> = common.iter().copied().chain(["--ray-traced"]).collect();
+    let (_, traced) = run_viewer_with(&display, dir.path(), "ray_traced", &with);
+    let (plain, traced) = (Picture::load(&plain), Picture::load(&traced));
+    let lum = |c: [f64; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    let (l, m, r) = (
+        traced.mean(0.0, 1.0 / 3.0),
+        traced.mean(1.0 / 3.0, 2.0 / 3.0),
+        traced.mean(2.0 / 3.0, 1.0),
+    );
+    eprintln!("ray-traced: left {l:.3?} middle {m:.3?} right {r:.3?}");
+    eprintln!(
+        "rasterised: left {:.3?} middle {:.3?} right {:.3?}",
+        plain.mean(0.0, 1.0 / 3.0),
+        plain.mean(1.0 / 3.0, 2.0 / 3.0),
+        plain.mean(2.0 / 3.0, 1.0)
+    );
+    assert!(l[0] / l[1] > 1.3 * m[0] / m[1], "left not red: {l:?} {m:?}");
+    assert!(r[1] / r[0] > 1.15 * m[1] / m[0], "right not green: {r:?} {m:?}");
+    let (lt, lp) = (lum(traced.mean(0.0, 1.0)), lum(plain.mean(0.0, 1.0)));
+    let differ = traced
+        .rgb
+        .iter()
+        .zip(&plain.rgb)
+        .map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).abs()).sum::<f64>() / 3.0)
+        .sum::<f64>()
+        / traced.rgb.len() as f64;
+    eprintln!("mean luminance: ray-traced {lt:.3}, rasterised {lp:.3}; differ by {differ:.4}");
+    assert!(
+        (lt - lp).abs() < 0.15 * lp,
+        "not the same solution: {lt} vs {lp}"
+    );
+    assert!(differ > 0.003, "the ray-traced view is not drawn: {differ}");
+}
