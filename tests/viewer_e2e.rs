@@ -152,7 +152,10 @@ fn the_ray_traced_view_shows_the_same_box_per_pixel() {
         plain.mean(2.0 / 3.0, 1.0)
     );
     assert!(l[0] / l[1] > 1.3 * m[0] / m[1], "left not red: {l:?} {m:?}");
-    assert!(r[1] / r[0] > 1.15 * m[1] / m[0], "right not green: {r:?} {m:?}");
+    assert!(
+        r[1] / r[0] > 1.15 * m[1] / m[0],
+        "right not green: {r:?} {m:?}"
+    );
     let (lt, lp) = (lum(traced.mean(0.0, 1.0)), lum(plain.mean(0.0, 1.0)));
     let differ = traced
         .rgb

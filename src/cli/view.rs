@@ -84,6 +84,12 @@ pub struct ViewCmdArgs {
     /// section). With --screenshot, the shot waits for 16 samples per pixel.
     #[arg(long)]
     pub ray_traced: bool,
+    /// Refine the mesh adaptively while solving (as `render --adaptive`): where the radiance
+    /// varies across an element by more than this fraction, refine and solve again, until
+    /// nothing does (three levels at most; "Refine adaptively" in the solver panel). With
+    /// --wireframe the mesh is seen growing.
+    #[arg(long)]
+    pub adaptive: Option<f64>,
     /// Exposure in stops.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub exposure: f32,
@@ -177,6 +183,11 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
     {
         bail!("--element-size must be a positive number, got {s}");
     }
+    if let Some(t) = args.adaptive
+        && !(t.is_finite() && t > 0.0)
+    {
+        bail!("--adaptive must be a positive number (a fraction, e.g. 0.25), got {t}");
+    }
     let method = match &args.method {
         Some(m) => super::render::parse_method("--formfactor", m)?,
         None => FormFactorMethod::Contour,
@@ -262,6 +273,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
             exposure_stops: args.exposure,
             highlight_shooter: !args.no_highlight,
             ray_traced: args.ray_traced,
+            adaptive: args.adaptive,
             paused: args.paused,
             no_vsync: args.no_vsync,
             solver_threads: args.solver_threads,

@@ -116,6 +116,7 @@ impl ViewerApp {
             element_size: options.element_size.unwrap_or(0.0),
             element_size_text: String::new(),
             element_size_error: None,
+            adaptive_tolerance: options.adaptive.unwrap_or(0.25),
             omega_text: match options.solver {
                 crate::solver::SolverKind::Sor(Some(w)) => w.to_string(),
                 _ => String::new(),
@@ -170,6 +171,9 @@ impl ViewerApp {
             teach,
             ray: Default::default(),
         };
+        if let Some(t) = options.adaptive {
+            app.solver.queue(Command::Adapt(Some(t)));
+        }
         if app.teach.is_some() {
             app.solver
                 .queue(Command::Teach(TeachCommand::RecordSteps(true)));

@@ -70,6 +70,8 @@ pub struct UiOptions {
     pub highlight_shooter: bool,
     /// Start with the ray-traced view on.
     pub ray_traced: bool,
+    /// Refine the mesh adaptively to this tolerance from the start.
+    pub adaptive: Option<f64>,
     /// Start paused.
     pub paused: bool,
     /// Present without waiting for vertical sync.

@@ -99,6 +99,8 @@ pub struct PanelState {
     pub element_size: f64,
     pub element_size_text: String,
     pub element_size_error: Option<String>,
+    /// Tolerance of "refine adaptively" (`--adaptive`).
+    pub adaptive_tolerance: f64,
     /// The ω field of SOR (empty: estimated from the first sweeps).
     pub omega_text: String,
     pub omega_error: Option<String>,
@@ -277,6 +279,27 @@ fn solver_section(
                     }
                 }
             }
+        });
+        ui.horizontal(|ui| {
+            if ui
+                .button("Refine adaptively")
+                .on_hover_text(
+                    "refine where the radiance varies across an element by more than the \
+                     tolerance, solve again, and repeat (turn on the element wireframe to \
+                     watch the mesh grow)",
+                )
+                .clicked()
+            {
+                actions.push(Action::Solver(Command::Adapt(Some(
+                    state.adaptive_tolerance,
+                ))));
+            }
+            ui.add(
+                egui::DragValue::new(&mut state.adaptive_tolerance)
+                    .range(0.02..=2.0)
+                    .speed(0.005)
+                    .prefix("tolerance "),
+            );
         });
         if let Some(e) = &state.element_size_error {
             ui.colored_label(egui::Color32::LIGHT_RED, e);

@@ -19,6 +19,7 @@
 //! pass over the mesh; the first state (emitters only) and the first shots are published
 //! at once so light shows up immediately.
 
+mod adapt;
 mod publish;
 mod ray_input;
 mod switch;
@@ -73,6 +74,9 @@ pub enum Command {
     /// with an [`Event::Error`] (the current solver goes on) when the new kind would refuse
     /// the problem ([`SolverKind::check`]).
     SetSolver(SolverKind),
+    /// Refine the mesh adaptively while solving, to this tolerance (`None`: stop refining;
+    /// see `adapt.rs`).
+    Adapt(Option<f64>),
     /// Teaching mode's requests (`viewer::teach`).
     Teach(crate::viewer::teach::TeachCommand),
     /// Publish what the ray-traced view renders ([`crate::viewer::raytrace::RenderInput`])

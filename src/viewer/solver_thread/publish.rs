@@ -47,7 +47,15 @@ impl Worker {
         let residual = solver.residual();
         let stats = Stats {
             solver: solver.name(),
-            report: solver.report(),
+            report: match &self.adapting {
+                Some(a) => format!(
+                    "{}; adaptive: pass {}, tolerance {}",
+                    solver.report(),
+                    a.passes + 1,
+                    a.tolerance
+                ),
+                None => solver.report(),
+            },
             matrix_bytes: solver.matrix_bytes(),
             elements: geometry.elements,
             patches: geometry.patches,
@@ -56,7 +64,7 @@ impl Worker {
             residual,
             elapsed_seconds: self.elapsed.as_secs_f64(),
             playing: self.playing,
-            converged: residual <= self.stop_unshot || self.exhausted,
+            converged: (residual <= self.stop_unshot || self.exhausted) && self.adapting.is_none(),
             limit_reached: self.max_shots.is_some_and(|m| solver.steps() >= m),
             last_shooter: solver.last_shooter().map(|p: PatchId| p.0),
         };

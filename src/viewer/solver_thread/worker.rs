@@ -89,6 +89,8 @@ pub(super) struct Worker {
     pub(super) ray_input: Option<Arc<crate::viewer::raytrace::RenderInput>>,
     pub(super) ray_input_key: Option<(usize, u64, u64)>,
     pub(super) ray_input_at: Option<Instant>,
+    /// Adaptive refinement in progress (`adapt.rs`).
+    pub(super) adapting: Option<super::adapt::Adapting>,
 }
 
 enum Flow {
@@ -154,6 +156,7 @@ impl Worker {
             ray_input: None,
             ray_input_key: None,
             ray_input_at: None,
+            adapting: None,
         }
     }
 
@@ -200,6 +203,7 @@ impl Worker {
                 self.guarded(None, false, Self::publish);
             }
             self.guarded(None, false, Self::shoot_once);
+            self.guarded(None, false, Self::adapt_once);
             self.guarded(None, false, Self::teach_work_once);
         }
     }
@@ -410,6 +414,7 @@ impl Worker {
             Command::SetMethod(method) => self.set_method(method),
             Command::SetSolver(kind) => self.set_solver(kind),
             Command::Teach(t) => self.teach(t),
+            Command::Adapt(t) => self.start_adapting(t),
             Command::RayTraced(on) => {
                 self.ray_input_on = on;
                 if !on {

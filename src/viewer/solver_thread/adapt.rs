@@ -1,0 +1,115 @@
+//! Adaptive meshing while the viewer solves (`view --adaptive TOL`, "refine adaptively" in
+//! the solver panel): each time the solve has shot all but [`ADAPT_UNSHOT`] of the
+//! emitted power, the elements whose radiance varies across them by more than the
+//! tolerance are refined one level (`mesh::adaptive`, Cohen et al. 1986: their patch
+//! cut into four, elements halved), and the solve restarts on the refined mesh, so the
+//! mesh grows on screen (wireframe) until nothing exceeds the tolerance, [`MAX_LEVEL`]
+//! levels are reached, or the mesh would pass `mesh::MAX_ELEMENTS`.
+
+use crate::mesh::Mesh;
+use crate::mesh::adaptive::refine_levels;
+use crate::solver::Problem;
+
+use super::Event;
+use super::worker::Worker;
+
+/// Refine when this fraction of the emitted power is left unshot (the indicator needs the
+/// solution's shape, not its last digits).
+pub const ADAPT_UNSHOT: f64 = 1e-3;
+
+/// Most refinement levels per base patch (each quarters its elements' area).
+pub const MAX_LEVEL: u8 = 3;
+
+/// An adaptive refinement in progress.
+#[derive(Debug, Clone)]
+pub(super) struct Adapting {
+    pub tolerance: f64,
+    /// Refinement level per base patch of the current mesh.
+    pub levels: Vec<u8>,
+    pub passes: u32,
+}
+
+impl Worker {
+    /// Starts (or, with `None`, stops) refining adaptively from the current mesh.
+    pub(super) fn start_adapting(&mut self, tolerance: Option<f64>) {
+        match tolerance {
+            None => self.adapting = None,
+            Some(t) if t.is_finite() && t > 0.0 => {
+                self.adapting = Some(Adapting {
+                    tolerance: t,
+                    levels: Vec::new(),
+                    passes: 0,
+                });
+                self.playing = true;
+            }
+            Some(t) => self.send_event(Event::Error(format!(
+                "adaptive tolerance must be a positive number, got {t}"
+            ))),
+        }
+    }
+
+    /// One refinement, when one is due: the solve is far enough and something exceeds the
+    /// tolerance. Ends the refinement when nothing does.
+    pub(super) fn adapt_once(&mut self) {
+        let (Some(a), Some(solver)) = (self.adapting.as_ref(), self.solver.as_ref()) else {
+            return;
+        };
+        if solver.residual() > ADAPT_UNSHOT.max(self.stop_unshot) && !self.exhausted {
+            return;
+        }
+        let mesh = &solver.problem().mesh;
+        let radiance = solver.element_radiance(false);
+        let next = refine_levels(mesh, &radiance, &a.levels, a.tolerance, MAX_LEVEL);
+        let level = |v: &[u8], b: u32| i32::from(v.get(b as usize).copied().unwrap_or(0));
+        let estimate: f64 = mesh
+            .patches
+            .iter()
+            .zip(&mesh.base_patch)
+            .map(|(p, &b)| {
+                f64::from(p.elements.end - p.elements.start)
+                    * 4f64.powi(level(&next, b) - level(&a.levels, b))
+            })
+            .sum();
+        if next == a.levels || estimate > crate::mesh::MAX_ELEMENTS as f64 {
+            // Done: the solve goes on to convergence on this mesh.
+            self.adapting = None;
+            self.dirty = true;
+            return;
+        }
+        let built = Mesh::build_refined(
+            &solver.problem().scene,
+            mesh.element_size,
+            mesh.patch_size,
+            &next,
+        );
+        let mesh = match built {
+            Ok(m) => m,
+            Err(e) => {
+                self.adapting = None;
+                self.send_event(Event::Error(format!("adaptive refinement: {e}")));
+                return;
+            }
+        };
+        let Some(solver) = self.solver.take() else {
+            return;
+        };
+        let (problem, mut rows) = solver.into_parts();
+        match Problem::with_mesh(problem.scene, problem.config, mesh) {
+            Ok(p) => {
+                rows.clear();
+                self.build(p, rows);
+                self.new_geometry();
+                if let Some(a) = self.adapting.as_mut() {
+                    a.levels = next;
+                    a.passes += 1;
+                }
+                self.playing = true;
+                self.exhausted = false;
+            }
+            Err(e) => {
+                self.adapting = None;
+                self.send_event(Event::Failed(format!("adaptive refinement: {e}")));
+            }
+        }
+    }
+}
