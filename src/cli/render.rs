@@ -77,6 +77,11 @@ pub struct RenderArgs {
     /// sees, several seconds more).
     #[arg(long, default_value = "vertex")]
     pub pass: String,
+    /// A priori discontinuity meshing: cut the surfaces along the shadow outlines each
+    /// light vertex casts through each blocker face before meshing, so element edges follow
+    /// the umbra and penumbra boundaries (`src/mesh/discontinuity.rs`).
+    #[arg(long)]
+    pub discontinuity: bool,
     /// Gather rays per pixel of `--pass gather` (shared among the pixel's samples; the
     /// gather's noise falls as 1/√N).
     #[arg(long, default_value_t = crate::render::gather::GATHER_RAYS_PER_PIXEL)]
@@ -339,6 +344,7 @@ fn render(args: &RenderArgs) -> Result<()> {
             .unwrap_or(crate::solver::DEFAULT_LINK_TOLERANCE),
         row_cache_bytes: max_memory_bytes(args.max_memory)?,
         raster: raster_for(method)?,
+        discontinuity: args.discontinuity,
     };
     let adapter = config.raster.as_ref().map(|r| r.describe());
     let solve_start = Instant::now();

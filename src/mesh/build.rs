@@ -32,7 +32,31 @@ impl Mesh {
         element_size: f64,
         patch_size: f64,
     ) -> Result<Mesh, MeshError> {
-        Mesh::build_from(scene, &Topology::new(scene), element_size, patch_size, &[])
+        Mesh::build_from(
+            scene,
+            &Topology::new(scene),
+            element_size,
+            patch_size,
+            &[],
+            false,
+        )
+    }
+
+    /// [`Mesh::build_with`] with the lights' shadow outlines as element edges
+    /// (`--discontinuity`, [`super::discontinuity`]).
+    pub fn build_with_discontinuities(
+        scene: &Scene,
+        element_size: f64,
+        patch_size: f64,
+    ) -> Result<Mesh, MeshError> {
+        Mesh::build_from(
+            scene,
+            &Topology::new(scene),
+            element_size,
+            patch_size,
+            &[],
+            true,
+        )
     }
 
     /// [`Mesh::build_with`], with patch `i` of that mesh (its *base* patch) refined
@@ -53,6 +77,7 @@ impl Mesh {
             element_size,
             patch_size,
             levels,
+            false,
         )
     }
 
@@ -64,6 +89,7 @@ impl Mesh {
         element_size: f64,
         patch_size: f64,
         levels: &[u8],
+        discontinuity: bool,
     ) -> Result<Mesh, MeshError> {
         let scale_of =
             |base: usize| f64::from(1u32 << levels.get(base).copied().unwrap_or(0).min(8));
@@ -133,14 +159,16 @@ impl Mesh {
                 Unit::Cluster { .. } => None,
             })
             .collect();
-        units.extend(
-            footprint::split(pieces, patch_size)
-                .into_iter()
-                .map(|p| Unit::Polygon {
-                    poly: p.poly,
-                    face: p.face,
-                }),
-        );
+        let pieces = footprint::split(pieces, patch_size);
+        let pieces = if discontinuity {
+            super::discontinuity::split(pieces, scene, patch_area)
+        } else {
+            pieces
+        };
+        units.extend(pieces.into_iter().map(|p| Unit::Polygon {
+            poly: p.poly,
+            face: p.face,
+        }));
         let clusters = topo.clusters(&small, patch_area, 0.75 * patch_size);
         let mut face_occluder = topo.planar.clone();
         let mut next_occluder = topo.planar_count as u32;

@@ -89,7 +89,7 @@ pub(super) fn split(pieces: Vec<Piece>, reach: f64) -> Vec<Piece> {
 }
 
 /// Whether the bounding boxes of two coplanar polygons overlap (a cheap reject).
-fn overlaps(a: &[DVec3], b: &[DVec3], n: DVec3) -> bool {
+pub(super) fn overlaps(a: &[DVec3], b: &[DVec3], n: DVec3) -> bool {
     let (t1, t2) = n.any_orthonormal_pair();
     let range = |poly: &[DVec3], t: DVec3| {
         poly.iter()
@@ -107,7 +107,7 @@ fn overlaps(a: &[DVec3], b: &[DVec3], n: DVec3) -> bool {
 
 /// `r` cut by the convex `footprint` (counter-clockwise about `n`): the part inside it and
 /// the convex pieces outside, or `r` itself when the footprint misses it or covers it.
-fn cut(r: &[DVec3], footprint: &[DVec3], n: DVec3, min_area: f64) -> Vec<Vec<DVec3>> {
+pub(super) fn cut(r: &[DVec3], footprint: &[DVec3], n: DVec3, min_area: f64) -> Vec<Vec<DVec3>> {
     let mut inside = r.to_vec();
     let mut outside = Vec::new();
     let m = footprint.len();

@@ -20,6 +20,7 @@
 
 pub mod adaptive;
 mod build;
+pub mod discontinuity;
 mod footprint;
 mod interpolate;
 pub mod surfaces;
@@ -254,6 +255,17 @@ impl Mesh {
         budget: Option<usize>,
         patch_size: Option<f64>,
     ) -> Result<Mesh, MeshError> {
+        Mesh::build_for_budget_with(scene, budget, patch_size, false)
+    }
+
+    /// [`Mesh::build_for_budget`], with the lights' shadow outlines as element edges when
+    /// `discontinuity` ([`discontinuity`]).
+    pub fn build_for_budget_with(
+        scene: &Scene,
+        budget: Option<usize>,
+        patch_size: Option<f64>,
+        discontinuity: bool,
+    ) -> Result<Mesh, MeshError> {
         let target = budget.unwrap_or(ELEMENT_BUDGET).max(1) as f64;
         let mut size = match budget {
             Some(b) => element_size_for_budget(scene, b),
@@ -268,7 +280,7 @@ impl Mesh {
             let patch = patch_size
                 .unwrap_or_else(|| default_patch_size(size))
                 .max(size);
-            let mesh = Mesh::build_from(scene, &topo, size, patch, &[])?;
+            let mesh = Mesh::build_from(scene, &topo, size, patch, &[], discontinuity)?;
             let count = mesh.elements.len() as f64;
             tries += 1;
             if count <= 1.05 * target || count <= 1.05 * min_count || tries == 3 {

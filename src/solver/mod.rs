@@ -63,6 +63,9 @@ pub struct SolverConfig {
     /// Hierarchical radiosity's BF refinement threshold, relative to the scene's area-mean
     /// emitted radiosity (`--link-tolerance`): smaller gives more links and a finer answer.
     pub link_tolerance: f64,
+    /// A priori discontinuity meshing: the lights' shadow outlines become element edges
+    /// (`--discontinuity`, [`mesh::discontinuity`]).
+    pub discontinuity: bool,
     /// The rasteriser of `gpu-hemicube` rows (`crate::gpu::GpuHemicube`); required by that
     /// method, unused by the others.
     pub raster: Option<Arc<dyn ItemBufferRaster>>,
@@ -80,6 +83,7 @@ impl Default for SolverConfig {
             overshoot: true,
             regional_ambient: true,
             link_tolerance: DEFAULT_LINK_TOLERANCE,
+            discontinuity: false,
             raster: None,
         }
     }

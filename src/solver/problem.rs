@@ -35,9 +35,18 @@ impl Problem {
                     .patch_size
                     .unwrap_or_else(|| mesh::default_patch_size(size))
                     .max(size);
-                Mesh::build_with(&scene, size, patch)?
+                if config.discontinuity {
+                    Mesh::build_with_discontinuities(&scene, size, patch)?
+                } else {
+                    Mesh::build_with(&scene, size, patch)?
+                }
             }
-            None => Mesh::build_for_budget(&scene, config.max_elements, config.patch_size)?,
+            None => Mesh::build_for_budget_with(
+                &scene,
+                config.max_elements,
+                config.patch_size,
+                config.discontinuity,
+            )?,
         };
         Self::with_mesh(scene, config, mesh)
     }
@@ -63,7 +72,11 @@ impl Problem {
             .patch_size
             .unwrap_or_else(|| mesh::default_patch_size(element_size))
             .max(element_size);
-        let mesh = Mesh::build_with(&self.scene, element_size, patch)?;
+        let mesh = if self.config.discontinuity {
+            Mesh::build_with_discontinuities(&self.scene, element_size, patch)?
+        } else {
+            Mesh::build_with(&self.scene, element_size, patch)?
+        };
         check_power(&self.scene.materials, &mesh)?;
         self.bvh = Bvh::build(&mesh.blocker_triangles(&self.scene));
         self.mesh = mesh;

@@ -1,0 +1,206 @@
+//! A priori discontinuity meshing of the lights' shadows (Heckbert 1992; Lischinski,
+//! Tampieri & Greenberg 1992), for `--discontinuity`: before the mesh is cut into patches
+//! and elements, every large planar unit is cut along the shadow outlines that each light
+//! vertex casts through each blocker face, so element edges lie on the boundaries of the
+//! umbrae and penumbrae instead of across them.
+//!
+//! For a light vertex `v` in front of receiver `P` and a face `Q` that faces `v` and lies
+//! wholly between `v` and `P`'s plane, `Q` projected centrally from `v` onto the plane is
+//! the region that `v` cannot see; its outline is made of first-order (EV) discontinuity
+//! lines of the light's visibility. The outlines of all light vertices bound the
+//! penumbra's vertex-edge events; the edge-vertex and edge-edge events of general scenes
+//! (and higher-order ones) are not found here, and faces that straddle `v`'s height are
+//! skipped. Contact lines, the zeroth order, are `footprint.rs`. The outlines are inserted
+//! as the boundaries of convex pieces ([`super::footprint`]'s cut), and each piece is
+//! meshed on its own, so an element edge follows every line; where pieces meet, their
+//! elements need not share vertices (the display interpolates per vertex position, as
+//! across any two units).
+//!
+//! Known error: the radiance is still constant per element; what changes is where the
+//! element boundaries are. Cuts are capped per unit ([`MAX_CUTS`]) so triangulated models
+//! with thousands of small blockers do not shatter a floor.
+
+use glam::DVec3;
+
+use super::footprint::{Piece, cut, overlaps};
+use crate::geometry::polygon;
+use crate::scene::Scene;
+
+/// Most shadow outlines cut into one unit.
+pub const MAX_CUTS: usize = 96;
+
+/// Blockers smaller than this fraction of a patch's area cast no cut (their shadows are
+/// smaller than the elements).
+const MIN_BLOCKER: f64 = 0.25;
+
+/// Cuts `pieces` along the shadow outlines of the scene's lights (see the module docs).
+pub(super) fn split(pieces: Vec<Piece>, scene: &Scene, patch_area: f64) -> Vec<Piece> {
+    let lights: Vec<&[DVec3]> = scene
+        .faces
+        .iter()
+        .filter(|f| scene.materials[f.material.0 as usize].is_emitter())
+        .map(|f| f.vertices.as_slice())
+        .collect();
+    if lights.is_empty() {
+        return pieces;
+    }
+    let blockers: Vec<(&[DVec3], DVec3)> = scene
+        .faces
+        .iter()
+        .filter(|f| !scene.materials[f.material.0 as usize].is_emitter())
+        .filter(|f| polygon::area(&f.vertices) >= MIN_BLOCKER * patch_area)
+        .filter_map(|f| Some((f.vertices.as_slice(), polygon::normal(&f.vertices)?)))
+        .collect();
+    let mut out = Vec::with_capacity(pieces.len());
+    for p in pieces {
+        let (Some(n), area) = (polygon::normal(&p.poly), polygon::area(&p.poly)) else {
+            out.push(p);
+            continue;
+        };
+        let origin = p.poly[0];
+        let mut parts = vec![p.poly.clone()];
+        let mut cuts = 0;
+        'light: for light in &lights {
+            for &v in light.iter() {
+                let hv = (v - origin).dot(n);
+                if hv <= 0.0 {
+                    continue;
+                }
+                for (q, nq) in &blockers {
+                    if cuts >= MAX_CUTS {
+                        break 'light;
+                    }
+                    let Some(shadow) = shadow(v, hv, q, *nq, origin, n) else {
+                        continue;
+                    };
+                    if !overlaps(&p.poly, &shadow, n) {
+                        continue;
+                    }
+                    cuts += 1;
+                    parts = parts
+                        .into_iter()
+                        .flat_map(|r| cut(&r, &shadow, n, 1e-9 * area))
+                        .collect();
+                }
+            }
+        }
+        out.extend(parts.into_iter().map(|poly| Piece { poly, face: p.face }));
+    }
+    out
+}
+
+/// `q` projected from `v` (at height `hv` above the plane through `origin` with normal `n`)
+/// onto that plane, counter-clockwise about `n`; `None` unless `q` faces `v`, is convex
+/// and lies wholly between `v` and the plane (touching the plane allowed).
+fn shadow(
+    v: DVec3,
+    hv: f64,
+    q: &[DVec3],
+    nq: DVec3,
+    origin: DVec3,
+    n: DVec3,
+) -> Option<Vec<DVec3>> {
+    if (v - q[0]).dot(nq) <= 1e-9 * hv || !polygon::is_convex(q) {
+        return None;
+    }
+    let tolerance = 1e-9 * hv;
+    if q.iter().all(|x| (*x - origin).dot(n).abs() <= tolerance) {
+        return None; // In the receiver's plane: no shadow on it.
+    }
+    let mut out = Vec::with_capacity(q.len());
+    for &x in q {
+        let h = (x - origin).dot(n);
+        if h < -tolerance || h > hv * (1.0 - 1e-6) {
+            return None;
+        }
+        // Where the ray from v through x meets the plane.
+        out.push(v + (x - v) * (hv / (hv - h)));
+    }
+    let normal = polygon::normal(&out)?;
+    if normal.dot(n) < 0.0 {
+        out.reverse();
+    }
+    Some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::LoadOptions;
+
+    /// A square blocker halfway between a point-like light and the floor casts a shadow
+    /// twice its size: the floor is cut along exactly that outline (a piece of the
+    /// shadow's area, centred under the light), and nothing is cut without a light.
+    #[test]
+    fn a_blocker_cuts_the_floor_along_its_shadow() {
+        let obj = "mtllib s.mtl
+v -10 0 -10\nv 10 0 -10\nv 10 0 10\nv -10 0 10
+v -1 2 -1\nv 1 2 -1\nv 1 2 1\nv -1 2 1
+v -0.01 4 -0.01\nv 0.01 4 -0.01\nv 0.01 4 0.01\nv -0.01 4 0.01
+usemtl floor\nf 1 4 3 2
+usemtl block\nf 5 8 7 6
+usemtl light\nf 9 10 11 12\n";
+        let mtl =
+            "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl block\nKd 0.5 0.5 0.5\nnewmtl light\nKe 1 1 1\n";
+        let scene = Scene::from_obj_str("s.obj", obj, &[("s.mtl", mtl)], &LoadOptions::default())
+            .expect("scene");
+        let floor = Piece {
+            poly: scene.faces[0].vertices.clone(),
+            face: 0,
+        };
+        let pieces = split(vec![floor], &scene, 1.0);
+        let total: f64 = pieces.iter().map(|p| polygon::area(&p.poly)).sum();
+        assert!((total - 400.0).abs() < 1e-6, "area kept: {total}");
+        // The umbra of the tiny light: the blocker (2×2 at height 2) doubled, 4×4 = 16.
+        let umbra = pieces
+            .iter()
+            .map(|p| polygon::area(&p.poly))
+            .filter(|a| (a - 16.0).abs() < 0.2)
+            .count();
+        assert!(
+            umbra >= 1,
+            "{:?}",
+            pieces
+                .iter()
+                .map(|p| polygon::area(&p.poly))
+                .collect::<Vec<_>>()
+        );
+        assert!(pieces.len() >= 5);
+        let mut dark = scene.clone();
+        for m in &mut dark.materials {
+            m.emission = crate::scene::Rgb::ZERO;
+        }
+        let floor = Piece {
+            poly: dark.faces[0].vertices.clone(),
+            face: 0,
+        };
+        assert_eq!(split(vec![floor], &dark, 1.0).len(), 1);
+    }
+}
+
+#[cfg(test)]
+mod cornell_tests {
+    use crate::mesh::Mesh;
+    use crate::scene::{LoadOptions, Scene};
+
+    /// On the Cornell box the shadow outlines add pieces (more patches at the same sizes)
+    /// and the meshes cover the same area. Not to round-off: the cut mesh measures 2.8e-7
+    /// more (0.5 mm² of 1.9 m²; meshes of two element sizes differ by 5e-9), most likely
+    /// slivers between the nearly coincident outlines of the light's four corners counted
+    /// twice; the bound below holds that to a thousandth of an element.
+    #[test]
+    fn the_cornell_mesh_gains_pieces_and_keeps_its_area() {
+        let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+        let plain = Mesh::build_with(&scene, 40.0, 160.0).expect("mesh");
+        let cut = Mesh::build_with_discontinuities(&scene, 40.0, 160.0).expect("mesh");
+        let area = |m: &Mesh| m.elements.iter().map(|e| e.area).sum::<f64>();
+        let (a, b) = (area(&plain), area(&cut));
+        assert!((a - b).abs() < 1e-3 * 40.0 * 40.0, "{a} vs {b}");
+        assert!(
+            cut.patches.len() > plain.patches.len(),
+            "{} vs {}",
+            cut.patches.len(),
+            plain.patches.len()
+        );
+    }
+}
