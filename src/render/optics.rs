@@ -82,7 +82,7 @@ mod tests {
     /// either side.
     #[test]
     fn normal_incidence_reflectance_is_the_textbook_value() {
-        for n in [1.33, 1.5, 2.4] {
+        for n in [1.33f64, 1.5, 2.4] {
             let want = ((n - 1.0) / (n + 1.0)).powi(2);
             assert!((fresnel_dielectric(1.0, 1.0, n) - want).abs() < 1e-12);
             assert!((fresnel_dielectric(1.0, n, 1.0) - want).abs() < 1e-12);
@@ -109,7 +109,10 @@ mod tests {
                 let ts = 2.0 * n1 * cos_i / (n1 * cos_i + n2 * cos_t);
                 let tp = 2.0 * n1 * cos_i / (n2 * cos_i + n1 * cos_t);
                 let t = n2 * cos_t / (n1 * cos_i) * 0.5 * (ts * ts + tp * tp);
-                assert!((r + t - 1.0).abs() < 1e-12, "{n1}->{n2} cos {cos_i}: R {r} T {t}");
+                assert!(
+                    (r + t - 1.0).abs() < 1e-12,
+                    "{n1}->{n2} cos {cos_i}: R {r} T {t}"
+                );
             }
         }
     }

@@ -11,6 +11,7 @@
 
 mod camera;
 pub mod gallery;
+mod specular;
 mod validate;
 
 pub use camera::Camera;
@@ -116,7 +117,9 @@ pub enum SceneError {
     },
     #[error("{file}: {message}")]
     Invalid { file: String, message: String },
-    #[error("unknown built-in scene '{0}' (available: cornell, furnace, cube, tworooms, gallery, cornell-specular)")]
+    #[error(
+        "unknown built-in scene '{0}' (available: cornell, furnace, cube, tworooms, gallery, cornell-specular)"
+    )]
     UnknownBuiltin(String),
     #[error("bad camera {0}")]
     Camera(String),

@@ -3,20 +3,15 @@
 //! `tobj` panics on some malformed input (a one-number `Kd 0.5`) and reports others without a
 //! line number, so every statement Nusselt relies on is checked here first and errors name
 //! `file:line`. Parsing itself is `tobj`'s.
-//!
-//! Specular parameters (`illum`, `Ks`, `Ni`, `d`, `Tr`) make a [`Surface`] only for `illum`
-//! 3–7 or `d` < 1 / `Tr` > 0, so a file without them (or with the `illum 2`, `Ks`, `Ns` every
-//! exporter writes) loads as the purely diffuse scene it always was. `Ns` (a glossy lobe) is
-//! accepted and ignored: mirrors are perfect.
+//! Specular statements are checked and turned into a [`Surface`] by [`super::specular`].
 
 use std::collections::HashMap;
 use std::io::BufReader;
 
 use glam::DVec3;
 
-use super::{
-    Face, LoadOptions, MAX_REFLECTANCE, Material, MaterialId, Rgb, Scene, SceneError, Surface,
-};
+use super::specular::{SpecularScan, surface};
+use super::{Face, LoadOptions, MAX_REFLECTANCE, Material, MaterialId, Scene, SceneError, Surface};
 use crate::geometry::polygon;
 
 /// Relative non-planarity (vertex distance from the best-fit plane over the face size)
@@ -171,41 +166,6 @@ fn scan_obj(file: &str, text: &str) -> Result<ObjScan, SceneError> {
     Ok(scan)
 }
 
-/// What one material's specular statements said, for the checks that need several of them.
-#[derive(Default)]
-struct SpecularScan {
-    name: String,
-    kd: Option<[f64; 3]>,
-    ks: Option<([f64; 3], usize)>,
-    illum: Option<(f64, usize)>,
-}
-
-impl SpecularScan {
-    /// Warnings for a mirror (`illum` 3 or 5) whose `Ks` is missing or too large.
-    fn finish(&self, file: &str, warnings: &mut Vec<String>) {
-        let Some((illum, illum_line)) = self.illum else {
-            return;
-        };
-        if illum != 3.0 && illum != 5.0 {
-            return;
-        }
-        let name = &self.name;
-        match self.ks {
-            None => warnings.push(format!(
-                "{file}:{illum_line}: '{name}' is a mirror (illum {illum}) without 'Ks': it reflects nothing specularly"
-            )),
-            Some((ks, line)) => {
-                let kd = self.kd.unwrap_or([0.5; 3]);
-                if (0..3).any(|c| ks[c] + kd[c].min(MAX_REFLECTANCE) > 1.0) {
-                    warnings.push(format!(
-                        "{file}:{line}: Ks + Kd of '{name}' exceeds 1 in a channel (the mirror would create light); Ks lowered to 1 − Kd"
-                    ));
-                }
-            }
-        }
-    }
-}
-
 fn scan_mtl(file: &str, text: &str, warnings: &mut Vec<String>) -> Result<(), SceneError> {
     let mut current: Option<String> = None;
     let mut specular = SpecularScan::default();
@@ -283,57 +243,15 @@ fn scan_mtl(file: &str, text: &str, warnings: &mut Vec<String>) -> Result<(), Sc
             }
             "Ns" | "Ni" | "d" | "Tr" | "illum" | "sharpness" => {
                 let x = numbers(file, line, key, args, 1, 1)?[0];
-                let bad = match key {
-                    "Ni" if x <= 0.0 => Some(format!(
-                        "'Ni' (refractive index) must be positive, got {x}"
-                    )),
-                    "d" | "Tr" if !(0.0..=1.0).contains(&x) => Some(format!(
-                        "'{key}' ({}) must be in [0, 1], got {x}",
-                        if key == "d" { "opacity" } else { "transparency" }
-                    )),
-                    "illum" if x.fract() != 0.0 || !(0.0..=255.0).contains(&x) => Some(format!(
-                        "'illum' must be a whole number (an illumination model, 0 to 10), got {x}"
-                    )),
-                    _ => None,
-                };
-                if let Some(message) = bad {
-                    return Err(parse_err(file, line, message));
-                }
-                if key == "illum" {
-                    specular.illum = Some((x, line));
-                }
+                specular
+                    .number(key, x, line)
+                    .map_err(|message| parse_err(file, line, message))?;
             }
             _ => {}
         }
     }
     specular.finish(file, warnings);
     Ok(())
-}
-
-/// The specular part an MTL material asks for (see the module docs); `Ks` is lowered to
-/// `1 − Kd` where the sum would exceed 1 (warned in [`scan_mtl`]).
-fn surface(m: &tobj::Material, kd: Rgb) -> Surface {
-    let illum = m.illumination_model.unwrap_or(0);
-    let transparent = m.dissolve.is_some_and(|d| d < 1.0)
-        || m
-            .unknown_param
-            .get("Tr")
-            .and_then(|t| t.parse::<f64>().ok())
-            .is_some_and(|t| t > 0.0);
-    if matches!(illum, 4 | 6 | 7) || transparent {
-        return Surface::Glass {
-            ior: m.optical_density.unwrap_or(1.5),
-        };
-    }
-    if matches!(illum, 3 | 5)
-        && let Some(ks) = m.specular
-    {
-        let ks = DVec3::new(ks[0], ks[1], ks[2]).min(DVec3::ONE - kd);
-        if ks.max_element() > 0.0 {
-            return Surface::Mirror { ks };
-        }
-    }
-    Surface::Diffuse
 }
 
 /// Returns (display name, text) of a named material library.
