@@ -407,7 +407,7 @@ mod tests {
             camera: Camera::cornell(),
             seed: 2,
         };
-        let before = crate::render::render_solution(&view, &settings);
+        let before = vertex_image(&problem, &radiance, &settings);
         let hybrid = Hybrid::new(&view);
         let base = |ray: &Ray, _: &mut Rng| match super::super::shade(&view, ray) {
             super::super::FirstHit::Background => Rgb::ZERO,
