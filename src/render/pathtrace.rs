@@ -41,6 +41,9 @@ pub struct PathTracer<'a> {
     lights: Vec<LightTri>,
     light_cdf: Vec<f64>,
     epsilon: f64,
+    /// Whether light may pass a mirror or glass after a diffuse bounce (see
+    /// [`PathTracer::without_caustics`]).
+    caustics: bool,
 }
 
 impl<'a> PathTracer<'a> {
@@ -90,7 +93,17 @@ impl<'a> PathTracer<'a> {
             lights,
             light_cdf,
             epsilon,
+            caustics: true,
         }
+    }
+
+    /// The light transport the radiosity + eye-pass hybrid computes: after the first diffuse
+    /// bounce, glass absorbs and a mirror reflects only its `Kd` part (as in the radiosity
+    /// solve), so no caustic is found. A reference for the hybrid's own error, the caustics
+    /// set aside.
+    pub fn without_caustics(mut self) -> Self {
+        self.caustics = false;
+        self
     }
 
     /// Radiance along a camera ray.
@@ -109,6 +122,11 @@ impl<'a> PathTracer<'a> {
             let m = &self.scene.materials[self.scene.faces[face].material.0 as usize];
             let x = ray.at(hit.t);
             let d = ray.dir.try_normalize().unwrap_or(DVec3::Z);
+            // After a diffuse bounce, without caustics: glass absorbs, a mirror is its Kd.
+            let diffuse_only = !self.caustics && !count_emission;
+            if diffuse_only && matches!(m.surface, Surface::Glass { .. }) {
+                break;
+            }
             if let Surface::Glass { ior } = m.surface {
                 // Both sides of glass are live: inside is the back.
                 let i = optics::dielectric(d, geometric, hit.front, ior);
@@ -136,7 +154,9 @@ impl<'a> PathTracer<'a> {
             }
             // Next-event estimation.
             result += throughput * m.reflectance * self.direct(x, n, rng);
-            if let Surface::Mirror { ks } = m.surface {
+            if let Surface::Mirror { ks } = m.surface
+                && !diffuse_only
+            {
                 // One lobe, chosen by its weight.
                 let (wd, ws) = (m.reflectance.max_element(), ks.max_element());
                 if rng.next_f64() * (wd + ws) < ws {
@@ -242,27 +262,35 @@ pub fn reference(
     settings: &RenderSettings,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Image {
-    let pt = PathTracer::new(scene);
-    let (w, h) = (settings.width, settings.height);
-    let cam = settings.camera;
-    let mut img = Image::new(w, h);
-    let done = AtomicUsize::new(0);
-    img.pixels
-        .par_chunks_mut(w as usize)
-        .enumerate()
-        .for_each(|(y, row)| {
-            for (x, px) in row.iter_mut().enumerate() {
-                let mut rng = Rng::new(hash_seed(&[settings.seed, x as u64, y as u64, 0x9a7]), 3);
-                let mut sum = Rgb::ZERO;
-                pixel_samples(x as u32, y as u32, settings.spp, settings.seed, |sx, sy| {
-                    let ray = Ray::new(cam.eye, cam.ray_dir(sx, sy, w, h));
-                    sum += pt.radiance(&ray, &mut rng);
-                });
-                *px = sum / settings.spp.max(1) as f64;
-            }
-            progress(done.fetch_add(1, Ordering::Relaxed) + 1);
-        });
-    img
+    PathTracer::new(scene).render(settings, progress)
+}
+
+impl PathTracer<'_> {
+    /// Renders an image with `settings.spp` paths per pixel (all cores), as [`reference`].
+    pub fn render(&self, settings: &RenderSettings, progress: &(dyn Fn(usize) + Sync)) -> Image {
+        let pt = self;
+        let (w, h) = (settings.width, settings.height);
+        let cam = settings.camera;
+        let mut img = Image::new(w, h);
+        let done = AtomicUsize::new(0);
+        img.pixels
+            .par_chunks_mut(w as usize)
+            .enumerate()
+            .for_each(|(y, row)| {
+                for (x, px) in row.iter_mut().enumerate() {
+                    let mut rng =
+                        Rng::new(hash_seed(&[settings.seed, x as u64, y as u64, 0x9a7]), 3);
+                    let mut sum = Rgb::ZERO;
+                    pixel_samples(x as u32, y as u32, settings.spp, settings.seed, |sx, sy| {
+                        let ray = Ray::new(cam.eye, cam.ray_dir(sx, sy, w, h));
+                        sum += pt.radiance(&ray, &mut rng);
+                    });
+                    *px = sum / settings.spp.max(1) as f64;
+                }
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+            });
+        img
+    }
 }
 
 #[cfg(test)]
