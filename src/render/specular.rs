@@ -385,6 +385,72 @@ mod tests {
         assert!(sd < 0.03 * m0, "too noisy to mean anything: {sd} of {m0}");
     }
 
+    /// `cornell-specular` against the path tracer without caustics (the same transport:
+    /// [`PathTracer::without_caustics`]), over the pixels whose centre sees the mirror or the
+    /// glass: the means agree within the path tracer's 4σ (256 paths per pixel) plus 5 %, the
+    /// direct pass's own error on this coarse mesh (2 % at the default mesh in `nusselt
+    /// bench --only specular`). A lost reflection or refraction moves the mean by half or
+    /// more; a caustic counted would show in the path tracer, not here.
+    #[test]
+    fn the_hybrid_matches_the_path_tracer_without_caustics() {
+        let scene = Scene::builtin("cornell-specular", &LoadOptions::default()).expect("scene");
+        let (problem, radiance) = solve(scene.clone(), 70.0);
+        let (w, h) = (16, 16);
+        let settings = RenderSettings {
+            width: w,
+            height: h,
+            spp: 16,
+            camera: Camera::cornell(),
+            seed: 4,
+        };
+        let hybrid = direct::render_solution(&problem, &radiance, &settings);
+        let pt = PathTracer::new(&scene).without_caustics();
+        let bvh = display_bvh(&problem.scene, &problem.mesh);
+        let camera = settings.camera;
+        let mut rng = Rng::new(8, 2);
+        let (mut h_sum, mut sum, mut sum2, mut n, mut pixels) = (0.0, 0.0, 0.0, 0.0, 0);
+        for y in 0..h {
+            for x in 0..w {
+                let centre = Ray::new(
+                    camera.eye,
+                    camera.ray_dir(x as f64 + 0.5, y as f64 + 0.5, w, h),
+                );
+                let Some(hit) = bvh.closest_hit(&centre, 0.0, f64::INFINITY) else {
+                    continue;
+                };
+                let e = problem.mesh.triangle_element[hit.id as usize];
+                let patch = problem
+                    .mesh
+                    .patch(problem.mesh.elements[e.0 as usize].patch);
+                if !problem.scene.materials[patch.material.0 as usize].is_specular() {
+                    continue;
+                }
+                pixels += 1;
+                h_sum += hybrid.pixels[(y * w + x) as usize].element_sum();
+                for k in 0..256 {
+                    let sx = x as f64 + ((k % 16) as f64 + rng.next_f64()) / 16.0;
+                    let sy = y as f64 + ((k / 16) as f64 + rng.next_f64()) / 16.0;
+                    let ray = Ray::new(camera.eye, camera.ray_dir(sx, sy, w, h));
+                    let l = pt.radiance(&ray, &mut rng).element_sum();
+                    sum += l;
+                    sum2 += l * l;
+                    n += 1.0;
+                }
+            }
+        }
+        assert!(
+            pixels >= 10,
+            "only {pixels} pixels see the mirror or the glass"
+        );
+        let mean = sum / n;
+        let sd = ((sum2 / n - mean * mean).max(0.0) / n).sqrt();
+        let hybrid_mean = h_sum / pixels as f64;
+        assert!(
+            (hybrid_mean - mean).abs() < 4.0 * sd + 0.05 * mean,
+            "hybrid {hybrid_mean} against the path tracer {mean} ± {sd} over {pixels} pixels"
+        );
+    }
+
     /// On a scene without mirrors or glass the eye pass is the pass itself, pixel for
     /// pixel: the hybrid called directly on the Cornell box gives the same image, bit for
     /// bit, as the vertex pass.
