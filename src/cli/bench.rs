@@ -33,7 +33,8 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 20.0)]
     pub seconds: f64,
     /// Only the scenes whose name contains this (e.g. `furnace`, `cube-0.99`, `cornell`,
-    /// `tworooms`, `cornell-image`, `hierarchical`, `large`: the gallery and a million-element
+    /// `tworooms`, `cornell-image`, `hierarchical`, `specular` (the mirror and glass scene,
+    /// hybrid against path tracer), `large`: the gallery and a million-element
     /// Cornell box with shooting, hierarchical and wavelet radiosity, several minutes).
     #[arg(long)]
     pub only: Option<String>,
@@ -44,6 +45,10 @@ pub struct BenchArgs {
     /// gallery --spp 4096`, about 1 % noise).
     #[arg(long, default_value = "benches/data/gallery_256_ref.pfm")]
     pub gallery_reference: PathBuf,
+    /// The `cornell-specular` path-traced reference for `specular` (the hybrid eye pass
+    /// against the path tracer; see docs/SPECULAR.md for how it was made).
+    #[arg(long, default_value = "benches/data/cornell_specular_256_ref.pfm")]
+    pub specular_reference: PathBuf,
 }
 
 /// Resets the process's peak resident memory (Linux: `5` to `/proc/self/clear_refs`), so
@@ -338,6 +343,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     }
     if wanted("cornell-image") {
         super::bench_cornell::cornell(&args.out, &args.cornell_reference, args.seconds)?;
+    }
+    if wanted("specular") {
+        super::bench_specular::specular(&args.out, &args.specular_reference, args.seconds)?;
     }
     if wanted("edit") || wanted("cornell") {
         live_edits(&args.out)?;

@@ -7,6 +7,7 @@ pub mod bench;
 mod bench_cornell;
 mod bench_hierarchical;
 mod bench_images;
+mod bench_specular;
 pub mod cases;
 mod formfactor;
 mod plot;
@@ -53,7 +54,7 @@ pub enum Command {
 pub struct SceneArgs {
     /// OBJ file (with its MTL files next to it).
     pub scene: Option<PathBuf>,
-    /// Built-in scene: cornell, furnace, cube (ceiling-lit unit cube, 12 triangles), tworooms
+    /// Built-in scene: cornell, cornell-specular (a mirror and a glass block), furnace, cube (ceiling-lit unit cube, 12 triangles), tworooms
     /// (two rooms and a door ajar) or gallery (a room with a 100,500-triangle statue).
     #[arg(long, conflicts_with = "scene")]
     pub builtin: Option<String>,

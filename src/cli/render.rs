@@ -499,6 +499,8 @@ fn render(args: &RenderArgs) -> Result<()> {
         "error": error,
         "method": method.name(),
         "rasteriser": adapter,
+        // Mirrors and glass traced by the eye pass (render::specular); caustics not included.
+        "specular": problem.scene.has_specular(),
     });
     if args.json {
         println!("{summary}");
@@ -517,6 +519,12 @@ fn render(args: &RenderArgs) -> Result<()> {
         );
         if !report.is_empty() {
             eprintln!("{name}: {report}");
+        }
+        if problem.scene.has_specular() {
+            eprintln!(
+                "mirrors and glass traced by the eye pass onto the diffuse solution; light they \
+                 throw onto diffuse surfaces (caustics) is not included (docs/SPECULAR.md)"
+            );
         }
     }
     Ok(())

@@ -231,7 +231,9 @@ pub fn render_solution(
 /// Renders with direct light per pixel: `view.vertex_radiance` must hold the indirect part
 /// (the solution minus each element's direct share, see the module docs).
 pub fn render(view: &SolutionView, lights: &DirectLight, settings: &RenderSettings) -> Image {
-    super::render_pixels(settings, 0xd1, |ray, rng| shade(view, lights, ray, rng))
+    super::specular::render_pixels(view, settings, 0xd1, |ray, rng| {
+        shade(view, lights, ray, rng)
+    })
 }
 
 fn shade(view: &SolutionView, lights: &DirectLight, ray: &Ray, rng: &mut Rng) -> Rgb {

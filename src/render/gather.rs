@@ -43,7 +43,7 @@ pub fn render_solution(
     };
     let lights = DirectLight::new(&problem.scene, &problem.mesh, &problem.bvh, problem.epsilon);
     let per_sample = (rays_per_pixel / settings.spp.max(1)).max(1);
-    super::render_pixels(settings, 0x9a, |ray, rng| {
+    super::specular::render_pixels(&view, settings, 0x9a, |ray, rng| {
         shade(&view, &lights, ray, per_sample, problem.epsilon, rng)
     })
 }

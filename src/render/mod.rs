@@ -2,13 +2,16 @@
 //!
 //! [`render_solution`] casts `spp` stratified rays per pixel (box filter over the pixel) and
 //! shades the first hit with the radiance interpolated from the mesh's display vertices;
-//! emitters show their `Ke`. [`pathtrace::reference`] is an unbiased diffuse path tracer on
+//! emitters show their `Ke`. Every pass sees through mirrors and glass ([`specular`]) when
+//! the scene has them. [`pathtrace::reference`] is an unbiased diffuse path tracer on
 //! the same scene for measuring the image error (pbrt-v4's `--mse-reference-image` idea).
 
 pub mod direct;
 pub mod gather;
 pub mod image;
+pub mod optics;
 pub mod pathtrace;
+pub mod specular;
 pub mod view;
 
 pub use self::image::{Image, relative_rms};
@@ -145,7 +148,7 @@ pub(crate) fn pixel_samples(x: u32, y: u32, spp: u32, seed: u64, mut f: impl FnM
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn render_solution(view: &SolutionView, settings: &RenderSettings) -> Image {
-    render_pixels(settings, 0, |ray, _| match shade(view, ray) {
+    specular::render_pixels(view, settings, 0, |ray, _| match shade(view, ray) {
         FirstHit::Background => Rgb::ZERO,
         FirstHit::Emitter(e) | FirstHit::Surface(e) => e,
     })

@@ -1,22 +1,29 @@
-//! Unbiased reference: a diffuse path tracer with next-event estimation and Russian roulette
+//! Unbiased reference: a path tracer with next-event estimation and Russian roulette
 //! (Kajiya 1986; Veach 1997 ch. 10; as in pbrt-v4's `PathIntegrator` restricted to Lambertian
-//! surfaces). It shares only the scene and the BVH code with the radiosity path.
+//! surfaces, perfect mirrors and smooth glass). It shares only the scene, the BVH code and
+//! the Fresnel formulas ([`super::optics`], tested on their own) with the radiosity path.
 //!
-//! Light at a camera-ray hit is `Le + ρ/π ∫ L cosθ dω`. Emitters are sampled by power
-//! (area × channel sum of `Ke`), uniformly by area on the chosen face; light found by
-//! BSDF sampling after the first bounce is not counted (it was counted by NEE), so each path
-//! is counted once. Error: zero bias, noise ∝ 1/√spp.
+//! Light at a camera-ray hit is `Le + ρ/π ∫ L cosθ dω` plus the specular part. Emitters are
+//! sampled by power (area × channel sum of `Ke`), uniformly by area on the chosen face; light
+//! found by BSDF sampling after a diffuse bounce is not counted (it was counted by NEE), so
+//! each path is counted once. NEE cannot find a light through a mirror or glass (a shadow ray
+//! is blocked by them; a delta lobe has zero probability of being sampled towards a point), so
+//! emission reached by a specular bounce is counted when hit: at a surface with both parts one
+//! lobe is chosen by its weight, and the next hit's `Ke` counts only after the specular lobe.
+//! Glass picks reflection with the Fresnel probability, refraction otherwise (weight 1).
+//! Caustics (light through glass or off a mirror onto a diffuse surface) are found only by
+//! BSDF sampling and are noisy. Error: zero bias, noise ∝ 1/√spp.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::{Image, RenderSettings, pixel_samples};
+use super::{Image, RenderSettings, optics, pixel_samples};
 use crate::geometry::bvh::TriangleInput;
 use crate::geometry::sampling::{cosine_hemisphere, hash_seed, triangle_point};
 use crate::geometry::{Bvh, Ray, Rng, polygon};
-use crate::scene::{Rgb, Scene};
+use crate::scene::{Rgb, Scene, Surface};
 
 struct LightTri {
     vertices: [DVec3; 3],
@@ -34,6 +41,9 @@ pub struct PathTracer<'a> {
     lights: Vec<LightTri>,
     light_cdf: Vec<f64>,
     epsilon: f64,
+    /// Whether light may pass a mirror or glass after a diffuse bounce (see
+    /// [`PathTracer::without_caustics`]).
+    caustics: bool,
 }
 
 impl<'a> PathTracer<'a> {
@@ -83,7 +93,17 @@ impl<'a> PathTracer<'a> {
             lights,
             light_cdf,
             epsilon,
+            caustics: true,
         }
+    }
+
+    /// The light transport the radiosity + eye-pass hybrid computes: after the first diffuse
+    /// bounce, glass absorbs and a mirror reflects only its `Kd` part (as in the radiosity
+    /// solve), so no caustic is found. A reference for the hybrid's own error, the caustics
+    /// set aside.
+    pub fn without_caustics(mut self) -> Self {
+        self.caustics = false;
+        self
     }
 
     /// Radiance along a camera ray.
@@ -92,24 +112,68 @@ impl<'a> PathTracer<'a> {
         let mut result = Rgb::ZERO;
         let mut ray = *ray;
         let two_sided = self.scene.two_sided;
+        // The camera, or a specular bounce: the next hit's emission is not found by NEE.
+        let mut count_emission = true;
         for depth in 0..10_000 {
             let Some(hit) = self.bvh.closest_hit(&ray, 0.0, f64::INFINITY) else {
                 break;
             };
-            let (face, mut n) = self.tri_face[hit.id as usize];
+            let (face, geometric) = self.tri_face[hit.id as usize];
+            let m = &self.scene.materials[self.scene.faces[face].material.0 as usize];
+            let x = ray.at(hit.t);
+            let d = ray.dir.try_normalize().unwrap_or(DVec3::Z);
+            // After a diffuse bounce, without caustics: glass absorbs, a mirror is its Kd.
+            let diffuse_only = !self.caustics && !count_emission;
+            if diffuse_only && matches!(m.surface, Surface::Glass { .. }) {
+                break;
+            }
+            if let Surface::Glass { ior } = m.surface {
+                // Both sides of glass are live: inside is the back.
+                let i = optics::dielectric(d, geometric, hit.front, ior);
+                ray = match i.refracted {
+                    Some(t) if rng.next_f64() >= i.reflectance => {
+                        Ray::new(x - i.facing * self.epsilon, t)
+                    }
+                    _ => Ray::new(x + i.facing * self.epsilon, i.reflected),
+                };
+                count_emission = true;
+                if depth >= 64 {
+                    break; // a ray trapped by total internal reflection
+                }
+                continue;
+            }
+            let mut n = geometric;
             if !hit.front {
                 if !two_sided {
                     break; // the unlit back of a one-sided face absorbs
                 }
                 n = -n;
             }
-            let m = &self.scene.materials[self.scene.faces[face].material.0 as usize];
-            if depth == 0 {
+            if count_emission {
                 result += throughput * m.emission;
             }
-            let x = ray.at(hit.t);
             // Next-event estimation.
             result += throughput * m.reflectance * self.direct(x, n, rng);
+            if let Surface::Mirror { ks } = m.surface
+                && !diffuse_only
+            {
+                // One lobe, chosen by its weight.
+                let (wd, ws) = (m.reflectance.max_element(), ks.max_element());
+                if rng.next_f64() * (wd + ws) < ws {
+                    throughput *= ks * ((wd + ws) / ws);
+                    if throughput.max_element() <= 0.0 || depth >= 64 {
+                        break;
+                    }
+                    count_emission = true;
+                    ray = Ray::new(x + n * self.epsilon, optics::reflect(d, n));
+                    continue;
+                }
+                if wd <= 0.0 {
+                    break;
+                }
+                throughput *= (wd + ws) / wd;
+            }
+            count_emission = false;
             // Continue.
             throughput *= m.reflectance;
             if depth >= 3 {
@@ -198,27 +262,35 @@ pub fn reference(
     settings: &RenderSettings,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Image {
-    let pt = PathTracer::new(scene);
-    let (w, h) = (settings.width, settings.height);
-    let cam = settings.camera;
-    let mut img = Image::new(w, h);
-    let done = AtomicUsize::new(0);
-    img.pixels
-        .par_chunks_mut(w as usize)
-        .enumerate()
-        .for_each(|(y, row)| {
-            for (x, px) in row.iter_mut().enumerate() {
-                let mut rng = Rng::new(hash_seed(&[settings.seed, x as u64, y as u64, 0x9a7]), 3);
-                let mut sum = Rgb::ZERO;
-                pixel_samples(x as u32, y as u32, settings.spp, settings.seed, |sx, sy| {
-                    let ray = Ray::new(cam.eye, cam.ray_dir(sx, sy, w, h));
-                    sum += pt.radiance(&ray, &mut rng);
-                });
-                *px = sum / settings.spp.max(1) as f64;
-            }
-            progress(done.fetch_add(1, Ordering::Relaxed) + 1);
-        });
-    img
+    PathTracer::new(scene).render(settings, progress)
+}
+
+impl PathTracer<'_> {
+    /// Renders an image with `settings.spp` paths per pixel (all cores), as [`reference`].
+    pub fn render(&self, settings: &RenderSettings, progress: &(dyn Fn(usize) + Sync)) -> Image {
+        let pt = self;
+        let (w, h) = (settings.width, settings.height);
+        let cam = settings.camera;
+        let mut img = Image::new(w, h);
+        let done = AtomicUsize::new(0);
+        img.pixels
+            .par_chunks_mut(w as usize)
+            .enumerate()
+            .for_each(|(y, row)| {
+                for (x, px) in row.iter_mut().enumerate() {
+                    let mut rng =
+                        Rng::new(hash_seed(&[settings.seed, x as u64, y as u64, 0x9a7]), 3);
+                    let mut sum = Rgb::ZERO;
+                    pixel_samples(x as u32, y as u32, settings.spp, settings.seed, |sx, sy| {
+                        let ray = Ray::new(cam.eye, cam.ray_dir(sx, sy, w, h));
+                        sum += pt.radiance(&ray, &mut rng);
+                    });
+                    *px = sum / settings.spp.max(1) as f64;
+                }
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+            });
+        img
+    }
 }
 
 #[cfg(test)]

@@ -3,13 +3,15 @@
 //! `tobj` panics on some malformed input (a one-number `Kd 0.5`) and reports others without a
 //! line number, so every statement Nusselt relies on is checked here first and errors name
 //! `file:line`. Parsing itself is `tobj`'s.
+//! Specular statements are checked and turned into a [`Surface`] by [`super::specular`].
 
 use std::collections::HashMap;
 use std::io::BufReader;
 
 use glam::DVec3;
 
-use super::{Face, LoadOptions, MAX_REFLECTANCE, Material, MaterialId, Scene, SceneError};
+use super::specular::{SpecularScan, surface};
+use super::{Face, LoadOptions, MAX_REFLECTANCE, Material, MaterialId, Scene, SceneError, Surface};
 use crate::geometry::polygon;
 
 /// Relative non-planarity (vertex distance from the best-fit plane over the face size)
@@ -164,15 +166,9 @@ fn scan_obj(file: &str, text: &str) -> Result<ObjScan, SceneError> {
     Ok(scan)
 }
 
-/// Per-material facts from the MTL pre-scan, keyed by material name.
-#[derive(Default)]
-struct MtlScan {
-    kd_line: HashMap<String, usize>,
-}
-
-fn scan_mtl(file: &str, text: &str, warnings: &mut Vec<String>) -> Result<MtlScan, SceneError> {
-    let mut scan = MtlScan::default();
+fn scan_mtl(file: &str, text: &str, warnings: &mut Vec<String>) -> Result<(), SceneError> {
     let mut current: Option<String> = None;
+    let mut specular = SpecularScan::default();
     for (line, words) in statements(text) {
         let args = &words[1..];
         let key = words[0];
@@ -181,7 +177,12 @@ fn scan_mtl(file: &str, text: &str, warnings: &mut Vec<String>) -> Result<MtlSca
                 if args.is_empty() {
                     return Err(parse_err(file, line, "'newmtl' needs a material name"));
                 }
+                specular.finish(file, warnings);
                 current = Some(args.join(" "));
+                specular = SpecularScan {
+                    name: args.join(" "),
+                    ..Default::default()
+                };
             }
             "Kd" | "Ka" | "Ks" | "Ke" | "Tf" => {
                 if current.is_none() {
@@ -234,16 +235,23 @@ fn scan_mtl(file: &str, text: &str, warnings: &mut Vec<String>) -> Result<MtlSca
                             "{file}:{line}: reflectance of '{name}' clamped to {MAX_REFLECTANCE} (ρ ≥ 1 never converges)"
                         ));
                     }
-                    scan.kd_line.insert(name, line);
+                    specular.kd = Some([v[0], v[1], v[2]]);
+                }
+                if key == "Ks" {
+                    specular.ks = Some(([v[0], v[1], v[2]], line));
                 }
             }
             "Ns" | "Ni" | "d" | "Tr" | "illum" | "sharpness" => {
-                numbers(file, line, key, args, 1, 1)?;
+                let x = numbers(file, line, key, args, 1, 1)?[0];
+                specular
+                    .number(key, x, line)
+                    .map_err(|message| parse_err(file, line, message))?;
             }
             _ => {}
         }
     }
-    Ok(scan)
+    specular.finish(file, warnings);
+    Ok(())
 }
 
 /// Returns (display name, text) of a named material library.
@@ -326,10 +334,12 @@ pub(super) fn load(
             let ke = m
                 .emissive
                 .map_or(DVec3::ZERO, |d| DVec3::new(d[0], d[1], d[2]));
+            let reflectance = kd.clamp(DVec3::ZERO, DVec3::splat(MAX_REFLECTANCE));
             Material {
                 name: m.name.clone(),
-                reflectance: kd.clamp(DVec3::ZERO, DVec3::splat(MAX_REFLECTANCE)),
+                reflectance,
                 emission: ke,
+                surface: surface(m, reflectance),
             }
         })
         .collect();
@@ -352,6 +362,7 @@ pub(super) fn load(
                         name: "default".into(),
                         reflectance: DVec3::splat(0.5),
                         emission: DVec3::ZERO,
+                        surface: Surface::Diffuse,
                     });
                     MaterialId(materials.len() as u32 - 1)
                 })

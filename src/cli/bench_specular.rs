@@ -1,0 +1,167 @@
+//! `nusselt bench --only specular`: the hybrid (radiosity + the specular eye pass,
+//! `render::specular`) against the path tracer on the built-in `cornell-specular` (a mirror
+//! tall block, a glass short block), both measured against a converged path-traced reference
+//! (`benches/data/cornell_specular_256_ref.pfm`): image error (relative RMS over surface
+//! pixels, as `render --reference`) and whole time to the image (mesh, form factors, solve
+//! and render for the hybrid). The hybrid's error has a floor: caustics (light through the
+//! glass and off the mirror onto diffuse surfaces) are not in the radiosity solution. So its
+//! error is also measured against the path tracer without caustics
+//! ([`PathTracer::without_caustics`], the hybrid's own light transport; two renders of
+//! [`NO_CAUSTICS_SPP`] with different seeds, averaged, their difference giving its noise):
+//! what is left there is the pass's own error.
+
+use std::io::Write;
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+
+use crate::render::pathtrace::PathTracer;
+use crate::render::{self, Image, RenderSettings};
+use crate::scene::{LoadOptions, Scene};
+use crate::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
+
+/// Samples per pixel of the hybrid's renders (what `render` does by default).
+const HYBRID_SPP: u32 = 16;
+/// Paths per pixel of each of the two caustic-free references.
+const NO_CAUSTICS_SPP: u32 = 512;
+
+/// Writes `specular.csv` (method, setting, seconds, error) and a table on stdout.
+pub fn specular(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
+    let reference = match Image::load_pfm(reference_path) {
+        Ok(r) => r,
+        Err(e) => {
+            println!(
+                "\nspecular: no reference ({e}); run from the repository root or pass --specular-reference"
+            );
+            return Ok(());
+        }
+    };
+    let scene = Scene::builtin("cornell-specular", &LoadOptions::default())?;
+    let camera = render::view::default_camera(&scene);
+    let (width, height) = (reference.width, reference.height);
+    let mask = render::error_mask(&scene, &camera, width, height);
+    let settings = |spp: u32, seed: u64| RenderSettings {
+        width,
+        height,
+        spp,
+        camera,
+        seed,
+    };
+    let mut rows: Vec<(String, String, f64, f64, Option<f64>)> = Vec::new();
+
+    // The path tracer without caustics: what the hybrid should converge to.
+    eprintln!("specular: caustic-free reference, 2 × {NO_CAUSTICS_SPP} spp…");
+    let tracer = PathTracer::new(&scene).without_caustics();
+    let a = tracer.render(&settings(NO_CAUSTICS_SPP, 11), &|_| {});
+    let b = tracer.render(&settings(NO_CAUSTICS_SPP, 12), &|_| {});
+    let mut no_caustics = a.clone();
+    for (p, q) in no_caustics.pixels.iter_mut().zip(&b.pixels) {
+        *p = (*p + *q) * 0.5;
+    }
+    // Each half is σ from the truth, their mean σ/√2; |a − b| is σ√2.
+    let noise = render::relative_rms(&a, &b, &mask)? / 2.0;
+
+    // The hybrid: a shooting solve to a residual of 1e-4 (default mesh), then each pass.
+    eprintln!("specular: radiosity solve…");
+    let start = Instant::now();
+    let mut solver =
+        SolverKind::Shooting.build(Problem::new(scene.clone(), SolverConfig::default())?)?;
+    let stop = StopCriteria {
+        unshot: 1e-4,
+        ..Default::default()
+    };
+    run_solver(
+        solver.as_mut(),
+        &stop,
+        &AtomicBool::new(false),
+        &mut |_, _| {},
+    );
+    let solved = start.elapsed().as_secs_f64();
+    let radiance = solver.element_radiance(true);
+    let problem = solver.problem();
+    for pass in ["vertex", "direct", "gather"] {
+        eprintln!("specular: hybrid, {pass} pass…");
+        let start = Instant::now();
+        let s = settings(HYBRID_SPP, 1);
+        let image = match pass {
+            "direct" => render::direct::render_solution(problem, &radiance, &s),
+            "gather" => render::gather::render_solution(
+                problem,
+                &radiance,
+                &s,
+                render::gather::GATHER_RAYS_PER_PIXEL,
+            ),
+            _ => {
+                let vertex = problem.mesh.vertex_values(&radiance);
+                let bvh = render::display_bvh(&problem.scene, &problem.mesh);
+                let view = render::SolutionView {
+                    scene: &problem.scene,
+                    mesh: &problem.mesh,
+                    vertex_radiance: &vertex,
+                    bvh: &bvh,
+                };
+                render::render_solution(&view, &s)
+            }
+        };
+        let t = solved + start.elapsed().as_secs_f64();
+        let e = render::relative_rms(&image, &reference, &mask)?;
+        let own = render::relative_rms(&image, &no_caustics, &mask)?;
+        rows.push((
+            format!("hybrid, {pass} pass"),
+            format!("{HYBRID_SPP} spp, {} elements", problem.mesh.elements.len()),
+            t,
+            e,
+            Some(own),
+        ));
+    }
+
+    // The path tracer at doubling sample counts, until a render takes `seconds`.
+    let mut spp = 4;
+    loop {
+        eprintln!("specular: path tracer {spp} spp…");
+        let start = Instant::now();
+        let image = render::pathtrace::reference(&scene, &settings(spp, 7), &|_| {});
+        let t = start.elapsed().as_secs_f64();
+        let e = render::relative_rms(&image, &reference, &mask)?;
+        rows.push(("path tracer".into(), format!("{spp} spp"), t, e, None));
+        if t > seconds || spp >= 1 << 14 {
+            break;
+        }
+        spp *= 4;
+    }
+
+    let path = out.join("specular.csv");
+    let mut w = std::io::BufWriter::new(
+        std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?,
+    );
+    writeln!(
+        w,
+        "method,setting,seconds,relative_rms,relative_rms_without_caustics"
+    )?;
+    println!(
+        "\ncornell-specular, {width}×{height}, against {} (error) and the path tracer without \
+         caustics, 2 × {NO_CAUSTICS_SPP} spp, noise {:.2} % (own error)",
+        reference_path.display(),
+        noise * 100.0
+    );
+    println!(
+        "{:<24} {:<28} {:>9} {:>10} {:>10}",
+        "method", "setting", "seconds", "error", "own error"
+    );
+    for (method, setting, t, e, own) in &rows {
+        let own_csv = own.map(|x| format!("{x:.5}")).unwrap_or_default();
+        writeln!(w, "{method},{setting},{t:.3},{e:.5},{own_csv}")?;
+        let own = own
+            .map(|x| format!("{:.2} %", x * 100.0))
+            .unwrap_or("–".into());
+        println!(
+            "{method:<24} {setting:<28} {t:>9.2} {:>8.2} % {own:>10}",
+            e * 100.0
+        );
+    }
+    w.flush()?;
+    eprintln!("wrote {}", path.display());
+    Ok(())
+}
