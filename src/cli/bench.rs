@@ -33,7 +33,8 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 20.0)]
     pub seconds: f64,
     /// Only the scenes whose name contains this (e.g. `furnace`, `cube-0.99`, `cornell`,
-    /// `tworooms`, `cornell-image`, `hierarchical`, `specular` (the mirror and glass scene,
+    /// `tworooms`, `cornell-image`, `meshing` (error against elements: uniform, adaptive and
+    /// discontinuity meshing), `hierarchical`, `specular` (the mirror and glass scene,
     /// hybrid against path tracer), `large`: the gallery and a million-element
     /// Cornell box with shooting, hierarchical and wavelet radiosity, several minutes).
     #[arg(long)]
@@ -343,6 +344,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     }
     if wanted("cornell-image") {
         super::bench_cornell::cornell(&args.out, &args.cornell_reference, args.seconds)?;
+    }
+    if wanted("meshing") {
+        super::bench_meshing::meshing(&args.out, &args.cornell_reference)?;
     }
     if wanted("specular") {
         super::bench_specular::specular(&args.out, &args.specular_reference, args.seconds)?;

@@ -99,16 +99,7 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
      -> Result<((f64, f64), (f64, f64))> {
         eprintln!("cornell image: {label}…");
         let start = Instant::now();
-        let mut problem = Problem::new(scene.clone(), config)?;
-        if let Some(tolerance) = adaptive {
-            problem = crate::solver::refine::refine_adaptively(
-                problem,
-                SolverKind::Shooting,
-                tolerance,
-                2,
-                1e-4,
-            )?;
-        }
+        let problem = super::bench_images::meshed(&scene, config, adaptive)?;
         let mut s = ProgressiveSolver::from_problem(problem);
         let stop = StopCriteria {
             unshot: 1e-4,

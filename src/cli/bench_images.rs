@@ -79,6 +79,22 @@ impl Recorder<'_> {
     }
 }
 
+/// The Cornell benchmarks' problem: `scene` meshed by `config`, then refined adaptively
+/// (`render --adaptive TOL`: two passes, each solved to 1e-4) when `adaptive` is given.
+pub fn meshed(scene: &Scene, config: SolverConfig, adaptive: Option<f64>) -> Result<Problem> {
+    let problem = Problem::new(scene.clone(), config)?;
+    Ok(match adaptive {
+        Some(tolerance) => crate::solver::refine::refine_adaptively(
+            problem,
+            SolverKind::Shooting,
+            tolerance,
+            2,
+            1e-4,
+        )?,
+        None => problem,
+    })
+}
+
 /// The display-correction benchmark on `tworooms`; writes `ambient.csv` and the plot.
 pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
     let scene = Scene::builtin("tworooms", &LoadOptions::default())?;

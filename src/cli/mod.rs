@@ -7,6 +7,7 @@ pub mod bench;
 mod bench_cornell;
 mod bench_hierarchical;
 mod bench_images;
+mod bench_meshing;
 mod bench_specular;
 pub mod cases;
 mod formfactor;

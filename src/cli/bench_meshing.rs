@@ -1,0 +1,153 @@
+//! `nusselt bench --only meshing`: the Cornell box's image error against its element count
+//! for the three ways of placing elements: uniform (`--max-elements N`), adaptive
+//! (`--adaptive TOL`, two passes from a coarse budget) and discontinuity meshing
+//! (`--discontinuity`), each rendered interpolated and with the direct pass, against the
+//! path-traced reference. Writes `meshing.csv` and the plot `cornell_meshing.{png,svg}`.
+
+use std::io::Write;
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+
+use crate::render::{self, Image, RenderSettings};
+use crate::scene::{LoadOptions, Scene};
+use crate::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+
+use super::bench_images::render_elements;
+use super::plot::{self, Plot, Series};
+
+/// One measured mesh: kind, label, elements, whole seconds and error interpolated, and with
+/// the direct pass.
+struct Row {
+    kind: &'static str,
+    label: String,
+    elements: usize,
+    vertex: (f64, f64),
+    direct: (f64, f64),
+}
+
+pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
+    let reference = Image::load_pfm(reference_path)
+        .with_context(|| format!("meshing: the reference {}", reference_path.display()))?;
+    let scene = Scene::builtin("cornell", &LoadOptions::default())?;
+    let camera = render::view::default_camera(&scene);
+    let mask = render::error_mask(&scene, &camera, reference.width, reference.height);
+    let settings = RenderSettings {
+        width: reference.width,
+        height: reference.height,
+        spp: 16,
+        camera,
+        seed: 1,
+    };
+    let never = AtomicBool::new(false);
+    let measure = |kind: &'static str,
+                   label: String,
+                   config: SolverConfig,
+                   adaptive: Option<f64>|
+     -> Result<Row> {
+        eprintln!("meshing: {kind} {label}…");
+        let start = Instant::now();
+        let problem = super::bench_images::meshed(&scene, config, adaptive)?;
+        let mut s = ProgressiveSolver::from_problem(problem);
+        s.run(&StopCriteria::default(), &never, &mut |_| {});
+        let solved = start.elapsed().as_secs_f64();
+        let radiance = s.element_radiance(true);
+        let bvh = render::display_bvh(&scene, s.mesh());
+        let image = render_elements(s.problem(), &radiance, &bvh, settings.spp);
+        let vertex = (
+            start.elapsed().as_secs_f64(),
+            render::relative_rms(&image, &reference, &mask)?,
+        );
+        let t = Instant::now();
+        let image = render::direct::render_solution(s.problem(), &radiance, &settings);
+        let direct = (
+            solved + t.elapsed().as_secs_f64(),
+            render::relative_rms(&image, &reference, &mask)?,
+        );
+        Ok(Row {
+            kind,
+            label,
+            elements: s.mesh().elements.len(),
+            vertex,
+            direct,
+        })
+    };
+    let mut rows = Vec::new();
+    for budget in [2_500, 5_000, 10_000, 20_000, 40_000] {
+        for (kind, discontinuity) in [("uniform", false), ("discontinuity", true)] {
+            let config = SolverConfig {
+                max_elements: Some(budget),
+                discontinuity,
+                ..Default::default()
+            };
+            rows.push(measure(kind, format!("budget {budget}"), config, None)?);
+        }
+    }
+    for (budget, tolerance) in [(1_250, 0.1), (2_500, 0.1), (5_000, 0.1), (5_000, 0.05)] {
+        let config = SolverConfig {
+            max_elements: Some(budget),
+            ..Default::default()
+        };
+        let label = format!("budget {budget}, --adaptive {tolerance}");
+        rows.push(measure("adaptive", label, config, Some(tolerance))?);
+    }
+    let path = out.join("meshing.csv");
+    let mut csv = std::io::BufWriter::new(
+        std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?,
+    );
+    writeln!(
+        csv,
+        "kind,setting,elements,seconds,error,seconds_direct,error_direct"
+    )?;
+    println!(
+        "\n| meshing | setting | elements | s | error | s, direct pass | error, direct pass |"
+    );
+    println!("|---|---|---:|---:|---:|---:|---:|");
+    for r in &rows {
+        writeln!(
+            csv,
+            "{},{},{},{:.3},{:.5},{:.3},{:.5}",
+            r.kind, r.label, r.elements, r.vertex.0, r.vertex.1, r.direct.0, r.direct.1
+        )?;
+        println!(
+            "| {} | {} | {} | {:.2} | {:.2} % | {:.2} | {:.2} % |",
+            r.kind,
+            r.label,
+            r.elements,
+            r.vertex.0,
+            100.0 * r.vertex.1,
+            r.direct.0,
+            100.0 * r.direct.1
+        );
+    }
+    csv.flush()?;
+    let series = |kind: &str, direct: bool| -> Series {
+        Series {
+            label: format!("{kind}{}", if direct { " + direct pass" } else { "" }),
+            points: rows
+                .iter()
+                .filter(|r| r.kind == kind)
+                .map(|r| {
+                    let (_, e) = if direct { r.direct } else { r.vertex };
+                    (r.elements as f64, e)
+                })
+                .collect(),
+            markers: kind == "adaptive",
+        }
+    };
+    plot::write(
+        &out.join("cornell_meshing"),
+        &Plot {
+            title: "Cornell box: image error against elements, by meshing",
+            x_label: "elements",
+            y_label: "relative RMS image error",
+            series: ["uniform", "adaptive", "discontinuity"]
+                .into_iter()
+                .flat_map(|k| [series(k, false), series(k, true)])
+                .collect(),
+        },
+    )?;
+    Ok(())
+}
