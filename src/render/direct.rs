@@ -201,13 +201,10 @@ pub fn element_direct(ctx: &RowContext, method: FormFactorMethod) -> Vec<Rgb> {
     direct
 }
 
-/// The whole second pass: `radiance` per element (a solution of `problem`, with or without
-/// its display correction) rendered with the lights' direct part per pixel.
-pub fn render_solution(
-    problem: &crate::solver::Problem,
-    radiance: &[Rgb],
-    settings: &RenderSettings,
-) -> Image {
+/// The indirect part of `radiance` per element (a solution of `problem`) at the mesh's
+/// display vertices: each element's value minus its direct share `ρ_j Σ_l F_jl E_l`
+/// ([`element_direct`]), what [`render`] adds the per-pixel direct light to.
+pub fn indirect_vertex_radiance(problem: &crate::solver::Problem, radiance: &[Rgb]) -> Vec<Rgb> {
     let direct = element_direct(&problem.row_context(), problem.config.method);
     let rho = problem.element_reflectance();
     let indirect: Vec<Rgb> = radiance
@@ -216,7 +213,17 @@ pub fn render_solution(
         .zip(&rho)
         .map(|((b, d), r)| *b - *r * *d)
         .collect();
-    let vertex = problem.mesh.vertex_values(&indirect);
+    problem.mesh.vertex_values(&indirect)
+}
+
+/// The whole second pass: `radiance` per element (a solution of `problem`, with or without
+/// its display correction) rendered with the lights' direct part per pixel.
+pub fn render_solution(
+    problem: &crate::solver::Problem,
+    radiance: &[Rgb],
+    settings: &RenderSettings,
+) -> Image {
+    let vertex = indirect_vertex_radiance(problem, radiance);
     let bvh = super::display_bvh(&problem.scene, &problem.mesh);
     let view = SolutionView {
         scene: &problem.scene,

@@ -14,7 +14,7 @@ use std::thread::JoinHandle;
 use std::time::Instant;
 
 use crate::mesh::Mesh;
-use crate::render::direct::{DirectLight, element_direct};
+use crate::render::direct::{DirectLight, indirect_vertex_radiance};
 use crate::render::{self, RenderSettings, SolutionView};
 use crate::scene::{Camera, Rgb, Scene};
 use crate::solver::{Problem, SolverConfig};
@@ -192,16 +192,7 @@ fn run(slot: &Slot, latest: &Latest<Arc<RayImage>>, waker: &Waker) {
                 continue;
             }
         };
-        let direct = element_direct(&problem.row_context(), problem.config.method);
-        let rho = problem.element_reflectance();
-        let indirect: Vec<Rgb> = input
-            .radiance
-            .iter()
-            .zip(&direct)
-            .zip(&rho)
-            .map(|((b, d), r)| *b - *r * *d)
-            .collect();
-        let vertex = problem.mesh.vertex_values(&indirect);
+        let vertex = indirect_vertex_radiance(&problem, &input.radiance);
         let bvh = render::display_bvh(&problem.scene, &problem.mesh);
         let view = SolutionView {
             scene: &problem.scene,
