@@ -39,7 +39,7 @@
 //!     bvh: &bvh,
 //! };
 //! let camera = render::view::default_camera(solver.scene()); // the scene's own, here
-//! let settings = RenderSettings { width: 32, height: 32, spp: 1, camera, seed: 1 };
+//! let settings = RenderSettings { width: 32, height: 32, spp: 1, camera, seed: 1, edge_spp: 0 };
 //! let image = render::render_solution(&view, &settings);
 //!
 //! // Mean colour of a column band of the middle rows.

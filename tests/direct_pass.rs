@@ -49,6 +49,7 @@ fn pixels_at(s: &ProgressiveSolver, x: f64, z: f64) -> Vec<f64> {
             vfov_deg: 0.05,
         },
         seed: 3,
+        edge_spp: 0,
     };
     let image = nusselt::render::direct::render_solution(
         s.problem(),

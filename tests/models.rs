@@ -114,6 +114,7 @@ fn image_of(s: &ProgressiveSolver, camera: Camera, width: u32, height: u32, spp:
             spp,
             camera,
             seed: 1,
+            edge_spp: 0,
         },
     )
 }

@@ -124,6 +124,7 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
             spp: 16,
             camera,
             seed: 1,
+            edge_spp: crate::render::DEFAULT_EDGE_SPP,
         };
         let direct =
             render::direct::render_solution(s.problem(), &s.element_radiance(true), &settings);
@@ -204,6 +205,7 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
             spp,
             camera,
             seed: 7,
+            edge_spp: 0,
         };
         let image = crate::render::pathtrace::reference(&scene, &settings, &|_| {});
         let t = start.elapsed().as_secs_f64();

@@ -51,6 +51,7 @@ pub(super) fn render_elements(
         spp,
         camera: render::view::default_camera(&problem.scene),
         seed: 1,
+        edge_spp: crate::render::DEFAULT_EDGE_SPP,
     };
     render::render_solution(&view, &settings)
 }

@@ -40,6 +40,7 @@ pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
         spp: 16,
         camera,
         seed: 1,
+        edge_spp: crate::render::DEFAULT_EDGE_SPP,
     };
     let never = AtomicBool::new(false);
     let measure = |kind: &'static str,

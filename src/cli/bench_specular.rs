@@ -48,6 +48,7 @@ pub fn specular(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
         spp,
         camera,
         seed,
+        edge_spp: 0,
     };
     let mut rows: Vec<(String, String, f64, f64, Option<f64>)> = Vec::new();
 

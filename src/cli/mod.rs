@@ -176,6 +176,7 @@ impl ViewArgs {
             spp: self.spp,
             camera,
             seed,
+            edge_spp: 0,
         })
     }
 }

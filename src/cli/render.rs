@@ -86,6 +86,11 @@ pub struct RenderArgs {
     /// gather's noise falls as 1/√N).
     #[arg(long, default_value_t = crate::render::gather::GATHER_RAYS_PER_PIXEL)]
     pub gather_rays: u32,
+    /// Extra samples in pixels whose first `--spp` samples disagree by more than 10 % of
+    /// their mean (silhouettes, shadow and contact edges, where 16 samples misjudge how
+    /// much of the pixel each side covers); 0: none
+    #[arg(long, default_value_t = crate::render::DEFAULT_EDGE_SPP)]
+    pub edge_spp: u32,
     /// Adaptive meshing: solve, halve the elements of every patch where the radiance varies
     /// across an element by more than this fraction of it (`src/mesh/adaptive.rs`), and solve
     /// again on the refined mesh; `--adaptive-passes` times (default 2), each to
@@ -319,7 +324,17 @@ fn render(args: &RenderArgs) -> Result<()> {
     }
     args.method_args.check()?;
     let scene = args.scene.load()?;
-    let settings = args.view.settings(&scene, args.seed)?;
+    if args.edge_spp > super::MAX_SPP {
+        bail!(
+            "--edge-spp must be at most {}, got {}",
+            super::MAX_SPP,
+            args.edge_spp
+        );
+    }
+    let settings = crate::render::RenderSettings {
+        edge_spp: args.edge_spp,
+        ..args.view.settings(&scene, args.seed)?
+    };
     // Read the reference first so a bad path fails before the work.
     let reference = match &args.reference {
         Some(p) => Some(Image::load_pfm(p)?),

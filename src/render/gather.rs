@@ -139,6 +139,7 @@ mod tests {
             spp: 2,
             camera,
             seed: 3,
+            edge_spp: 0,
         };
         let radiance = solver.element_radiance(false);
         let image = render_solution(solver.problem(), &radiance, &settings, 8);

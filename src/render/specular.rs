@@ -228,6 +228,7 @@ mod tests {
             spp: 4,
             camera,
             seed: 5,
+            edge_spp: 0,
         };
         for kd in [0.0, 0.2] {
             let mtl = format!(
@@ -320,6 +321,7 @@ mod tests {
             spp: 4,
             camera: Camera::cornell(),
             seed: 2,
+            edge_spp: 0,
         };
         let points = |scene: &Scene| -> Image {
             let mesh = crate::mesh::Mesh::build(scene, 140.0).expect("mesh");
@@ -402,6 +404,7 @@ mod tests {
             spp: 16,
             camera: Camera::cornell(),
             seed: 4,
+            edge_spp: 0,
         };
         let hybrid = direct::render_solution(&problem, &radiance, &settings);
         let pt = PathTracer::new(&scene).without_caustics();
@@ -472,6 +475,7 @@ mod tests {
             spp: 4,
             camera: Camera::cornell(),
             seed: 2,
+            edge_spp: 0,
         };
         let before = vertex_image(&problem, &radiance, &settings);
         let hybrid = Hybrid::new(&view);

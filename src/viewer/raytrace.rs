@@ -215,6 +215,7 @@ fn run(slot: &Slot, latest: &Latest<Arc<RayImage>>, waker: &Waker) {
                     spp: 1,
                     camera: job.camera,
                     seed: u64::from(pass) + 1,
+                    edge_spp: 0,
                 };
                 let image = render::direct::render(&view, &lights, &settings);
                 for (s, p) in sum.iter_mut().zip(&image.pixels) {
@@ -275,6 +276,7 @@ mod tests {
                 spp: 16,
                 camera,
                 seed: 99,
+                edge_spp: 0,
             },
         );
         let mut tracer = RayTracer::spawn(Box::new(|| {})).expect("thread");
