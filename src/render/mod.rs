@@ -337,11 +337,6 @@ mod tests {
             }
         }
         assert!(n >= 40, "the edge crosses {n} pixels");
-        eprintln!(
-            "{n} pixels: {:.4} {:.4}",
-            (edged_sq / n as f64).sqrt(),
-            (plain_sq / n as f64).sqrt()
-        );
         let (plain_rms, edged_rms) = ((plain_sq / n as f64).sqrt(), (edged_sq / n as f64).sqrt());
         assert!(
             edged_rms <= 0.037 && edged_rms < 0.6 * plain_rms,
