@@ -169,6 +169,11 @@ pub fn render_solution(view: &SolutionView, settings: &RenderSettings) -> Image 
     })
 }
 
+/// The seed of a pixel's second (edge) sample grid.
+pub(crate) fn edge_seed(seed: u64) -> u64 {
+    hash_seed(&[seed, 0xed9e])
+}
+
 /// Every pixel the mean of `shade` over its camera samples ([`pixel_samples`], plus
 /// `edge_spp` more where the first disagree), rows in parallel; `shade` gets a generator seeded by the pixel and `tag` (one stream per pass).
 pub(crate) fn render_pixels(
@@ -199,7 +204,7 @@ pub(crate) fn render_pixels(
                 if settings.edge_spp > 0 && hi - lo > EDGE_CONTRAST * mean {
                     // A second jittered grid: both are unbiased estimates of the pixel's
                     // box-filtered integral, so their samples average together.
-                    let edge_seed = hash_seed(&[settings.seed, 0xed9e]);
+                    let edge_seed = edge_seed(settings.seed);
                     pixel_samples(
                         x as u32,
                         y as u32,
