@@ -299,7 +299,7 @@ pub fn render(view: &SolutionView, lights: &DirectLight, settings: &RenderSettin
                     _ => None,
                 };
                 *px = pixel.unwrap_or_else(|| {
-                    all_samples(view, lights, settings, (x, y), &seen, &mut rng)
+                    all_samples(view, lights, settings, (x, y), sample, &mut rng)
                 });
             }
         });
@@ -326,15 +326,25 @@ enum Seen {
 impl Seen {
     fn with_direct(&self, lights: &DirectLight, rng: &mut Rng) -> Rgb {
         match *self {
+            Seen::Surface { p, n, own, .. } => self.shown(lights.incident(p, n, own, rng)),
+            _ => self.shown(Rgb::ZERO),
+        }
+    }
+
+    /// The sample's radiance given the direct irradiance (over π) at its point.
+    fn shown(&self, direct: Rgb) -> Rgb {
+        match *self {
             Seen::Nothing => Rgb::ZERO,
             Seen::Emitter(e) => e,
-            Seen::Surface {
-                p,
-                n,
-                own,
-                rho,
-                indirect,
-            } => indirect.max(Rgb::ZERO) + rho * lights.incident(p, n, own, rng),
+            Seen::Surface { rho, indirect, .. } => indirect.max(Rgb::ZERO) + rho * direct,
+        }
+    }
+
+    /// `(occluder group, normal)` of a surface sample.
+    fn surface_key(&self) -> Option<(u32, DVec3)> {
+        match *self {
+            Seen::Surface { own, n, .. } => Some((own, n)),
+            _ => None,
         }
     }
 }
@@ -446,30 +456,74 @@ fn all_samples(
     lights: &DirectLight,
     settings: &RenderSettings,
     (x, y): (u32, u32),
-    seen: &[Seen],
+    Sampled { seen, at }: Sampled,
     rng: &mut Rng,
 ) -> Rgb {
     let mut sum = Rgb::ZERO;
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut direct = Vec::with_capacity(seen.len());
     for s in seen {
-        let c = s.with_direct(lights, rng);
+        let d = match *s {
+            Seen::Surface { p, n, own, .. } => lights.incident(p, n, own, rng),
+            _ => Rgb::ZERO,
+        };
+        direct.push(d);
+        let c = s.shown(d);
         let l = c.x + c.y + c.z;
         (lo, hi) = (lo.min(l), hi.max(l));
         sum += c;
     }
     let mut count = seen.len().max(1) as u32;
     let mean = (sum.x + sum.y + sum.z) / count as f64;
-    if settings.edge_spp > 0 && hi - lo > EDGE_CONTRAST * mean {
+    // Edge samples where the samples see several surfaces (silhouettes, contacts): they
+    // are for how much of the pixel each covers, and on a surface already sampled the
+    // direct light of the nearest sample there serves (it varies little across a pixel on
+    // one surface). A shadow edge within one surface gets none: its base samples each
+    // have their exact direct light, and the soft penumbrae of area lights need no more
+    // (on the Cornell box they left the error unchanged at 1.78 % and 0.99 % and cost
+    // 0.6 s of 1.4).
+    let surfaces = seen.iter().filter_map(Seen::surface_key).fold(
+        Vec::new(),
+        |mut keys: Vec<(u32, DVec3)>, k| {
+            if !keys.iter().any(|&q| same_surface(q, k)) {
+                keys.push(k);
+            }
+            keys
+        },
+    );
+    let emitter = seen.iter().any(|s| matches!(s, Seen::Emitter(_)));
+    let nothing = seen.iter().any(|s| matches!(s, Seen::Nothing));
+    let several = surfaces.len() + usize::from(emitter) + usize::from(nothing) > 1;
+    if settings.edge_spp > 0 && several && hi - lo > EDGE_CONTRAST * mean {
         let (w, h) = (settings.width, settings.height);
         let cam = settings.camera;
         let edge_seed = super::edge_seed(settings.seed);
         pixel_samples(x, y, settings.edge_spp, edge_seed, |sx, sy| {
             let ray = Ray::new(cam.eye, cam.ray_dir(sx, sy, w, h));
-            sum += see(view, &ray).with_direct(lights, rng);
+            let s = see(view, &ray);
+            let near = s.surface_key().and_then(|key| {
+                (0..seen.len())
+                    .filter(|&k| seen[k].surface_key().is_some_and(|q| same_surface(q, key)))
+                    .min_by(|&a, &b| {
+                        let q = DVec2::new(sx, sy);
+                        (at[a] - q)
+                            .length_squared()
+                            .total_cmp(&(at[b] - q).length_squared())
+                    })
+            });
+            sum += match near {
+                Some(k) => s.shown(direct[k]),
+                None => s.with_direct(lights, rng),
+            };
         });
         count += settings.edge_spp;
     }
     sum / count as f64
+}
+
+/// Whether two samples' `(occluder group, normal)` are one surface.
+fn same_surface(a: (u32, DVec3), b: (u32, DVec3)) -> bool {
+    a.0 == b.0 && a.1.dot(b.1) > 0.999_999
 }
 
 fn see(view: &SolutionView, ray: &Ray) -> Seen {
