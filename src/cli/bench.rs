@@ -35,7 +35,9 @@ pub struct BenchArgs {
     /// Only the scenes whose name contains this (e.g. `furnace`, `cube-0.99`, `cornell`,
     /// `tworooms`, `cornell-image`, `meshing` (error against elements: uniform, adaptive and
     /// discontinuity meshing), `hierarchical`, `specular` (the mirror and glass scene,
-    /// hybrid against path tracer), `large`: the gallery and a million-element
+    /// hybrid against path tracer), `targets` (the Cornell box's whole-process time to 5 %,
+    /// 2 % and 1 % image error, `nusselt render` run as a child process, against the path
+    /// tracer), `large`: the gallery and a million-element
     /// Cornell box with shooting, hierarchical and wavelet radiosity, several minutes).
     #[arg(long)]
     pub only: Option<String>,
@@ -350,6 +352,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     }
     if wanted("specular") {
         super::bench_specular::specular(&args.out, &args.specular_reference, args.seconds)?;
+    }
+    if wanted("targets") {
+        super::bench_targets::targets(&args.out, &args.cornell_reference)?;
     }
     if wanted("edit") || wanted("cornell") {
         live_edits(&args.out)?;

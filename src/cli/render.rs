@@ -71,7 +71,7 @@ pub struct RenderArgs {
     pub link_tolerance: Option<f64>,
     /// How the image is made from the solution: `vertex` (radiosity interpolated over the
     /// mesh), `direct` (the lights' direct contribution per pixel with exact form factors
-    /// and shadow rays, the indirect rest from the solution; sharper shadows, ~1 s more) or
+    /// and shadow rays, the indirect rest from the solution; sharper shadows, about 0.5 s more at 256²) or
     /// `gather` (direct per pixel plus one bounce gathered from the solution by 64
     /// cosine-weighted rays per pixel: the solution's error averaged over what each point
     /// sees, several seconds more).

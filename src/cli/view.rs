@@ -90,6 +90,11 @@ pub struct ViewCmdArgs {
     /// --wireframe the mesh is seen growing.
     #[arg(long)]
     pub adaptive: Option<f64>,
+    /// A priori discontinuity meshing (as `render --discontinuity`): the lights' shadow
+    /// outlines are cut into the surfaces before meshing, so element edges follow the
+    /// umbra and penumbra boundaries (see them with --wireframe).
+    #[arg(long)]
+    pub discontinuity: bool,
     /// Exposure in stops.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub exposure: f32,
@@ -274,6 +279,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
             highlight_shooter: !args.no_highlight,
             ray_traced: args.ray_traced,
             adaptive: args.adaptive,
+            discontinuity: args.discontinuity,
             paused: args.paused,
             no_vsync: args.no_vsync,
             solver_threads: args.solver_threads,

@@ -72,6 +72,7 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
             element_size: options.element_size,
             method: options.method,
             raster: options.raster.clone(),
+            discontinuity: options.discontinuity,
             ..Default::default()
         },
         kind: options.solver,

@@ -72,6 +72,9 @@ pub struct UiOptions {
     pub ray_traced: bool,
     /// Refine the mesh adaptively to this tolerance from the start.
     pub adaptive: Option<f64>,
+    /// Cut the lights' shadow outlines into the surfaces before meshing
+    /// (`SolverConfig::discontinuity`).
+    pub discontinuity: bool,
     /// Start paused.
     pub paused: bool,
     /// Present without waiting for vertical sync.
