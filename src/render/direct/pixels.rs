@@ -50,6 +50,7 @@ pub fn render(view: &SolutionView, lights: &DirectLight, settings: &RenderSettin
         .for_each(|(y, row)| {
             let mut seen = Vec::with_capacity(spp as usize);
             let mut at = Vec::with_capacity(spp as usize);
+            let mut known = Vec::with_capacity(spp as usize);
             for (x, px) in row.iter_mut().enumerate() {
                 let (x, y) = (x as u32, y as u32);
                 let mut rng =
@@ -64,14 +65,16 @@ pub fn render(view: &SolutionView, lights: &DirectLight, settings: &RenderSettin
                     seen: &seen,
                     at: &at,
                 };
+                known.clear();
+                known.resize(seen.len(), None);
                 let pixel = match check {
                     Some(check) if shared => {
-                        shade_pixel(lights, sample, &quadrants, check, &mut rng)
+                        shade_pixel(lights, sample, &quadrants, check, &mut known, &mut rng)
                     }
                     _ => None,
                 };
                 *px = pixel.unwrap_or_else(|| {
-                    all_samples(view, lights, settings, (x, y), sample, &mut rng)
+                    all_samples(view, lights, settings, (x, y), sample, &known, &mut rng)
                 });
             }
         });
@@ -146,17 +149,13 @@ fn shade_pixel(
     Sampled { seen, at }: Sampled,
     quadrants: &[usize],
     check: usize,
+    known: &mut [Option<Rgb>],
     rng: &mut Rng,
 ) -> Option<Rgb> {
-    let Some(&Seen::Surface {
-        n: n0, own: own0, ..
-    }) = seen.first()
-    else {
-        return None;
-    };
-    let one_surface = seen.iter().all(
-        |s| matches!(s, Seen::Surface { n, own, .. } if *own == own0 && n.dot(n0) > 0.999_999),
-    );
+    let first = seen.first().and_then(Seen::surface_key)?;
+    let one_surface = seen
+        .iter()
+        .all(|s| s.surface_key().is_some_and(|k| same_surface(k, first)));
     if !one_surface || quadrants.len() < 4 {
         return None;
     }
@@ -175,6 +174,7 @@ fn shade_pixel(
             return None;
         };
         *v = lights.incident(p, n, own, rng);
+        known[k] = Some(*v);
         let reflected = rho * *v;
         let l = reflected.x + reflected.y + reflected.z;
         (lo, hi) = (lo.min(l), hi.max(l));
@@ -208,7 +208,9 @@ fn shade_pixel(
     let Seen::Surface { p, n, own, rho, .. } = seen[check] else {
         return None;
     };
-    let miss = rho * (lights.incident(p, n, own, rng) - plane(at[check]));
+    let at_check = lights.incident(p, n, own, rng);
+    known[check] = Some(at_check);
+    let miss = rho * (at_check - plane(at[check]));
     if (miss.x + miss.y + miss.z).abs() > PLANE_MISS * shown {
         return None;
     }
@@ -221,22 +223,25 @@ fn shade_pixel(
     Some(sum / seen.len() as f64)
 }
 
-/// The pixel with the direct light of every sample, plus the edge samples where the
-/// samples disagree (as [`super::render_pixels`] does).
+/// The pixel with the direct light of every sample (`known`: those [`shade_pixel`] already
+/// computed), plus the edge samples where the samples disagree (as
+/// [`crate::render::render_pixels`] does).
 fn all_samples(
     view: &SolutionView,
     lights: &DirectLight,
     settings: &RenderSettings,
     (x, y): (u32, u32),
     Sampled { seen, at }: Sampled,
+    known: &[Option<Rgb>],
     rng: &mut Rng,
 ) -> Rgb {
     let mut sum = Rgb::ZERO;
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     let mut direct = Vec::with_capacity(seen.len());
-    for s in seen {
-        let d = match *s {
-            Seen::Surface { p, n, own, .. } => lights.incident(p, n, own, rng),
+    for (s, known) in seen.iter().zip(known) {
+        let d = match (*s, known) {
+            (_, Some(d)) => *d,
+            (Seen::Surface { p, n, own, .. }, None) => lights.incident(p, n, own, rng),
             _ => Rgb::ZERO,
         };
         direct.push(d);
