@@ -43,6 +43,12 @@ pub fn render_solution(
     };
     let lights = DirectLight::new(&problem.scene, &problem.mesh, &problem.bvh, problem.epsilon);
     let per_sample = (rays_per_pixel / settings.spp.max(1)).max(1);
+    // No edge samples: a few gather rays per sample make every pixel's samples disagree,
+    // and the contrast test would send each pixel `edge_spp` more.
+    let settings = &RenderSettings {
+        edge_spp: 0,
+        ..*settings
+    };
     super::specular::render_pixels(&view, settings, 0x9a, |ray, rng| {
         shade(&view, &lights, ray, per_sample, problem.epsilon, rng)
     })

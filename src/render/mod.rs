@@ -35,8 +35,8 @@ pub struct RenderSettings {
     /// Extra stratified samples in each pixel whose first `spp` samples disagree by more
     /// than [`EDGE_CONTRAST`] of their mean: silhouettes, shadow and contact edges, where a
     /// pixel's value is the share of it each side covers and 16 samples estimate that share
-    /// to about 1/8 of the contrast. 0: none. The path tracer ignores it (its samples always
-    /// disagree).
+    /// to about 1/8 of the contrast. 0: none. The path tracer and the final gather ignore it
+    /// (their noisy samples always disagree).
     pub edge_spp: u32,
 }
 
