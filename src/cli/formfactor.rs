@@ -8,7 +8,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 
 use super::cases;
-use super::render::{MethodArgs, parse_method};
+use super::method::{MethodArgs, parse_method};
 use crate::formfactor::FormFactorParams;
 
 #[derive(Args, Debug)]
@@ -47,7 +47,7 @@ pub fn run(args: &FormfactorArgs) -> Result<()> {
         cubature_depth: args.cubature_depth.min(12),
         ..args.method_args.params()
     };
-    let raster = super::render::raster_for(method)?;
+    let raster = super::method::raster_for(method)?;
     let mut stdout = std::io::stdout().lock();
     for case in &list {
         let start = Instant::now();

@@ -12,6 +12,7 @@ mod bench_specular;
 mod bench_targets;
 pub mod cases;
 mod formfactor;
+mod method;
 mod plot;
 mod reference;
 mod render;

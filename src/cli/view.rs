@@ -194,7 +194,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
         bail!("--adaptive must be a positive number (a fraction, e.g. 0.25), got {t}");
     }
     let method = match &args.method {
-        Some(m) => super::render::parse_method("--formfactor", m)?,
+        Some(m) => super::method::parse_method("--formfactor", m)?,
         None => FormFactorMethod::Contour,
     };
     let solver = parse_solver(&args.solver, args.omega)?;
@@ -270,7 +270,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
             solver,
             teach,
             projector: args.projector,
-            raster: super::render::raster_for(method)?,
+            raster: super::method::raster_for(method)?,
             window,
             wireframe: args.wireframe,
             patch_outlines: args.patch_outlines,
