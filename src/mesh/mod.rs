@@ -20,6 +20,7 @@
 
 pub mod adaptive;
 mod build;
+mod cluster;
 pub mod discontinuity;
 mod footprint;
 mod interpolate;
