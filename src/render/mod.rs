@@ -82,11 +82,18 @@ fn shade(view: &SolutionView, ray: &Ray) -> FirstHit {
     if !hit.front && !view.scene.two_sided {
         return FirstHit::Surface(Rgb::ZERO); // the unlit back of a one-sided face
     }
-    if material.is_emitter() {
-        return FirstHit::Emitter(material.emission);
-    }
     let [a, b, c] = tri.map(|v| view.vertex_radiance[v as usize]);
-    FirstHit::Surface(a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v)
+    let radiance = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
+    if material.is_emitter() {
+        // An emitter that also reflects shows its radiosity `E + ρH` (its display group
+        // holds faces of its own material only, so nothing else is interpolated into it);
+        // a black one exactly its `Ke`.
+        if material.reflectance == Rgb::ZERO {
+            return FirstHit::Emitter(material.emission);
+        }
+        return FirstHit::Emitter(radiance);
+    }
+    FirstHit::Surface(radiance)
 }
 
 /// Pixel samples: an `m × m` jittered grid over the pixel (m² ≥ spp, m = ⌈√spp⌉).

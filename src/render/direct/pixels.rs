@@ -314,7 +314,9 @@ fn see(view: &SolutionView, ray: &Ray) -> Seen {
     if !hit.front && !view.scene.two_sided {
         return Seen::Emitter(Rgb::ZERO); // the unlit back of a one-sided face
     }
-    if material.is_emitter() {
+    // An emitter that also reflects is shaded as a surface: its indirect part (the solution
+    // minus its direct share) holds its emission.
+    if material.is_emitter() && material.reflectance == Rgb::ZERO {
         return Seen::Emitter(material.emission);
     }
     let [a, b, c] = tri.map(|v| view.vertex_radiance[v as usize]);
