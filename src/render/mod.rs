@@ -2,8 +2,8 @@
 //!
 //! [`render_solution`] casts `spp` stratified rays per pixel (box filter over the pixel) and
 //! shades the first hit with the radiance interpolated from the mesh's display vertices;
-//! emitters show their radiosity (`Ke` plus what they reflect). Every pass sees through mirrors and glass ([`specular`]) when
-//! the scene has them. [`pathtrace::reference`] is an unbiased diffuse path tracer on
+//! emitters show their radiosity (`Ke` plus what they reflect). Every pass sees through
+//! mirrors and glass ([`specular`]) when the scene has them. [`pathtrace::reference`] is an unbiased diffuse path tracer on
 //! the same scene for measuring the image error (pbrt-v4's `--mse-reference-image` idea).
 
 pub mod direct;
