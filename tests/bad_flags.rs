@@ -374,6 +374,14 @@ fn solver_flags_are_checked() {
     refused(&with(&["--ambient", "local"]), "unknown --ambient 'local'");
     refused(&with(&["--pass", "photon"]), "unknown --pass 'photon'");
     refused(
+        &with(&["--time-budget", "-2"]),
+        "--time-budget must be a positive number",
+    );
+    refused(
+        &with(&["--pass", "direct", "--time-budget", "5"]),
+        "--time-budget chooses the pass of --pass auto",
+    );
+    refused(
         &with(&["--pass", "gather", "--gather-rays", "0"]),
         "--gather-rays must be between 1 and 65536",
     );

@@ -362,6 +362,9 @@ fn scale_series_renders_the_same_image() {
             "48",
             "--spp",
             "4",
+            // One pass at every scale: `auto` chooses by the time it measures.
+            "--pass",
+            "vertex",
         ]);
         let v: serde_json::Value = serde_json::from_str(json.trim()).expect("json summary");
         eprintln!("scale {tag}: {v}");

@@ -237,3 +237,50 @@ fn render_reports_its_error_against_a_reference() {
         "error {error} below the reference's noise {sigma}"
     );
 }
+
+/// `--pass auto` (the default) takes the direct pass when the time budget leaves room for it
+/// and the vertex pass when the run has already used it up (1 ms: the load alone takes
+/// longer), and says which in the summary; the image is then that pass's, pixel for pixel.
+/// A fixed pass reports no estimate.
+#[test]
+fn the_auto_pass_follows_the_time_budget() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let p = |name: &str| dir.path().join(name).to_str().expect("utf-8").to_string();
+    let run = |out: &str, extra: &[&str]| -> serde_json::Value {
+        let common = [
+            "render",
+            "--builtin",
+            "cornell",
+            "--element-size",
+            "60",
+            "--width",
+            "24",
+            "--height",
+            "24",
+            "--spp",
+            "4",
+            "--json",
+            "--quiet",
+            "--out",
+        ];
+        let json = nusselt(&[&common[..], &[out], extra].concat());
+        serde_json::from_str(json.trim()).expect("json")
+    };
+    let roomy = run(&p("auto.pfm"), &["--time-budget", "1000"]);
+    assert_eq!(roomy["pass"], "direct", "{roomy}");
+    assert!(roomy["pass_estimate_seconds"].as_f64().expect("estimate") > 0.0);
+    assert_eq!(roomy["time_budget"].as_f64(), Some(1000.0));
+    let tight = run(&p("tight.pfm"), &["--time-budget", "0.001"]);
+    assert_eq!(tight["pass"], "vertex", "{tight}");
+    for (pass, auto) in [("direct", "auto.pfm"), ("vertex", "tight.pfm")] {
+        let fixed = run(&p("fixed.pfm"), &["--pass", pass]);
+        assert_eq!(fixed["pass"], pass);
+        assert!(fixed["pass_estimate_seconds"].is_null(), "{fixed}");
+        let a = Image::load_pfm(Path::new(&p(auto))).expect("auto image");
+        let b = Image::load_pfm(Path::new(&p("fixed.pfm"))).expect("fixed image");
+        assert_eq!(
+            a.pixels, b.pixels,
+            "--pass auto chose {pass} but drew another image"
+        );
+    }
+}

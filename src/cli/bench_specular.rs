@@ -82,35 +82,20 @@ pub fn specular(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
     let solved = start.elapsed().as_secs_f64();
     let radiance = solver.element_radiance(true);
     let problem = solver.problem();
-    for pass in ["vertex", "direct", "gather"] {
-        eprintln!("specular: hybrid, {pass} pass…");
+    for pass in render::Pass::ALL {
+        eprintln!("specular: hybrid, {} pass…", pass.name());
         let start = Instant::now();
-        let s = settings(HYBRID_SPP, 1);
-        let image = match pass {
-            "direct" => render::direct::render_solution(problem, &radiance, &s),
-            "gather" => render::gather::render_solution(
-                problem,
-                &radiance,
-                &s,
-                render::gather::GATHER_RAYS_PER_PIXEL,
-            ),
-            _ => {
-                let vertex = problem.mesh.vertex_values(&radiance);
-                let bvh = render::display_bvh(&problem.scene, &problem.mesh);
-                let view = render::SolutionView {
-                    scene: &problem.scene,
-                    mesh: &problem.mesh,
-                    vertex_radiance: &vertex,
-                    bvh: &bvh,
-                };
-                render::render_solution(&view, &s)
-            }
-        };
+        let image = pass.render(
+            problem,
+            &radiance,
+            &settings(HYBRID_SPP, 1),
+            render::gather::GATHER_RAYS_PER_PIXEL,
+        );
         let t = solved + start.elapsed().as_secs_f64();
         let e = render::relative_rms(&image, &reference, &mask)?;
         let own = render::relative_rms(&image, &no_caustics, &mask)?;
         rows.push((
-            format!("hybrid, {pass} pass"),
+            format!("hybrid, {} pass", pass.name()),
             format!("{HYBRID_SPP} spp, {} elements", problem.mesh.elements.len()),
             t,
             e,

@@ -49,6 +49,8 @@ const TARGETS: [Target; 3] = [
             "global",
             "--edge-spp",
             "16",
+            "--pass",
+            "vertex",
         ],
     },
     // Discontinuity meshing and the direct pass.

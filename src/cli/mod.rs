@@ -13,6 +13,7 @@ mod bench_targets;
 pub mod cases;
 mod formfactor;
 mod method;
+mod pass;
 mod plot;
 mod reference;
 mod render;
@@ -57,8 +58,10 @@ pub enum Command {
 pub struct SceneArgs {
     /// OBJ file (with its MTL files next to it).
     pub scene: Option<PathBuf>,
-    /// Built-in scene: cornell, cornell-specular (a mirror and a glass block), furnace, cube (ceiling-lit unit cube, 12 triangles), tworooms
-    /// (two rooms and a door ajar) or gallery (a room with a 100,500-triangle statue).
+    /// Built-in scene: cornell, cornell-specular (a mirror and a glass block), cornell-glossy
+    /// (a glossy metal and a glass block), furnace, cube (ceiling-lit unit cube, 12
+    /// triangles), tworooms (two rooms and a door ajar) or gallery (a room with a
+    /// 100,500-triangle statue).
     #[arg(long, conflicts_with = "scene")]
     pub builtin: Option<String>,
     /// Treat every face as two-sided (reflects and emits on both sides).

@@ -10,9 +10,10 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::method::{MethodArgs, parse_method, raster_for};
+use super::pass::{choose, parse_pass};
 use super::{MAX_RAYS, MAX_VIS_RAYS, SceneArgs, ViewArgs, check_count, check_output};
 use crate::formfactor::FormFactorParams;
-use crate::render::{self, Image, SolutionView};
+use crate::render::{self, Image};
 use crate::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
 
 #[derive(Args, Debug)]
@@ -70,12 +71,18 @@ pub struct RenderArgs {
     pub link_tolerance: Option<f64>,
     /// How the image is made from the solution: `vertex` (radiosity interpolated over the
     /// mesh), `direct` (the lights' direct contribution per pixel with exact form factors
-    /// and shadow rays, the indirect rest from the solution; sharper shadows, about 0.5 s more at 256²) or
-    /// `gather` (direct per pixel plus one bounce gathered from the solution by 64
+    /// and shadow rays, the indirect rest from the solution; sharper shadows, about 0.5 s more
+    /// at 256²), `gather` (direct per pixel plus one bounce gathered from the solution by 64
     /// cosine-weighted rays per pixel: the solution's error averaged over what each point
-    /// sees, several seconds more).
-    #[arg(long, default_value = "vertex")]
+    /// sees, several seconds more) or `auto` (default): `direct` when its time, measured on
+    /// a probe of 1/16 of the pixels, fits in what is left of --time-budget, else `vertex`.
+    #[arg(long, default_value = "auto")]
     pub pass: String,
+    /// Seconds the whole run may take (load, mesh, solve, render) for `--pass auto` to choose
+    /// the most accurate pass that fits (default 10). The solve is not cut short by it:
+    /// --seconds does that.
+    #[arg(long, allow_negative_numbers = true)]
+    pub time_budget: Option<f64>,
     /// A priori discontinuity meshing: cut the surfaces along the shadow outlines each
     /// light vertex casts through each blocker face before meshing, so element edges follow
     /// the umbra and penumbra boundaries (`src/mesh/discontinuity.rs`).
@@ -195,10 +202,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     if args.seconds.is_some_and(|s| !(s.is_finite() && s >= 0.0)) {
         bail!("--seconds must be a number >= 0");
     }
-    let pass = match args.pass.as_str() {
-        "vertex" | "direct" | "gather" => args.pass.as_str(),
-        other => bail!("unknown --pass '{other}' (expected vertex, direct or gather)"),
-    };
+    let pass_choice = parse_pass(&args.pass, args.time_budget)?;
     if args.gather_rays == 0 || args.gather_rays > 65536 {
         bail!("--gather-rays must be between 1 and 65536");
     }
@@ -378,22 +382,11 @@ fn render(args: &RenderArgs) -> Result<()> {
     let (problem, rows) = solver.into_parts();
     drop(rows);
 
+    let chosen = choose(pass_choice, process_start, &problem, &radiance, &settings);
     let render_start = Instant::now();
-    let image = if pass == "direct" {
-        render::direct::render_solution(&problem, &radiance, &settings)
-    } else if pass == "gather" {
-        render::gather::render_solution(&problem, &radiance, &settings, args.gather_rays)
-    } else {
-        let vertex: Vec<_> = problem.mesh.vertex_values(&radiance);
-        let bvh = render::display_bvh(&problem.scene, &problem.mesh);
-        let view = SolutionView {
-            scene: &problem.scene,
-            mesh: &problem.mesh,
-            vertex_radiance: &vertex,
-            bvh: &bvh,
-        };
-        render::render_solution(&view, &settings)
-    };
+    let image = chosen
+        .pass
+        .render(&problem, &radiance, &settings, args.gather_rays);
     let render_seconds = render_start.elapsed().as_secs_f64();
     image.save(&args.out, args.exposure)?;
 
@@ -440,6 +433,9 @@ fn render(args: &RenderArgs) -> Result<()> {
         "solver_report": report,
         "matrix_bytes": matrix_bytes,
         "solve_seconds": solve_seconds,
+        "pass": chosen.pass.name(),
+        "pass_estimate_seconds": chosen.estimate,
+        "time_budget": chosen.budget,
         "render_seconds": render_seconds,
         "total_seconds": process_start.elapsed().as_secs_f64(),
         "unshot_fraction": residual,
@@ -466,6 +462,9 @@ fn render(args: &RenderArgs) -> Result<()> {
         );
         if !report.is_empty() {
             eprintln!("{name}: {report}");
+        }
+        if let Some(line) = chosen.describe() {
+            eprintln!("{line}");
         }
         if problem.scene.has_specular() {
             eprintln!(

@@ -10,11 +10,13 @@ pub mod direct;
 pub mod gather;
 pub mod image;
 pub mod optics;
+pub mod pass;
 pub mod pathtrace;
 pub mod specular;
 pub mod view;
 
 pub use self::image::{Image, relative_rms};
+pub use self::pass::Pass;
 pub use crate::scene::Camera;
 
 use glam::DVec3;

@@ -6,8 +6,20 @@
 //! index for all three channels), no polarisation carried between bounces (each bounce uses
 //! the unpolarised mean, the usual renderer approximation: a few percent off after two
 //! reflections near Brewster's angle).
+//!
+//! A glossy mirror is a mirror blurred by the Phong lobe (the glossy reflection of Cook,
+//! Porter & Carpenter 1984, "Distributed ray tracing"): it reflects `Ks` of the light arriving
+//! from directions spread around the mirror direction with density `(n + 1)/(2π) cosⁿα`, α
+//! the angle to the mirror direction; the part of the lobe below the surface is lost. So it
+//! reflects exactly `Ks` at normal incidence, a little less towards grazing (half at grazing
+//! for a wide lobe), and tends to the perfect mirror as n grows, at every angle (the
+//! normalized modified Phong BRDF of Lafortune & Willems 1994 tends to `Ks cos θ` instead,
+//! dark at grazing: a jump at the exponent where a material becomes a mirror). Not
+//! reciprocal (`f = Ks p(α)/cos θ`, θ of the sampled direction); only eye paths use it.
 
 use glam::DVec3;
+
+use crate::geometry::sampling::basis;
 
 /// `d` reflected about the unit normal `n` (either side).
 pub fn reflect(d: DVec3, n: DVec3) -> DVec3 {
@@ -74,6 +86,19 @@ pub fn dielectric(d: DVec3, n: DVec3, front: bool, ior: f64) -> Interface {
     }
 }
 
+/// A direction of the Phong lobe of `exponent` around the unit mirror direction `axis`,
+/// drawn with density `(n + 1)/(2π) cosⁿα` from two uniforms; `None` when it falls below the
+/// surface of unit `normal` (on the reflecting side): the lobe's lost part. A glossy mirror
+/// shows `Ks` × the mean radiance along these directions, `None` counting zero.
+pub fn phong_lobe(axis: DVec3, normal: DVec3, exponent: f64, u1: f64, u2: f64) -> Option<DVec3> {
+    let cos_a = u1.powf(1.0 / (exponent + 1.0));
+    let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
+    let phi = 2.0 * std::f64::consts::PI * u2;
+    let (t, b) = basis(axis);
+    let dir = t * (sin_a * phi.cos()) + b * (sin_a * phi.sin()) + axis * cos_a;
+    (dir.dot(normal) > 0.0).then_some(dir)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -137,5 +162,72 @@ mod tests {
         let i = dielectric(inside(critical + 0.01), -n, false, 1.5);
         assert_eq!(i.reflectance, 1.0);
         assert!(i.refracted.is_none());
+    }
+
+    /// The lobe against quadrature. The fraction of directions kept (above the surface) is
+    /// ∫ (n + 1)/(2π) cosⁿα dω over the lobe's part above the surface, summed on a 400 × 800
+    /// (θ, φ) midpoint grid of the hemisphere: 1 at normal incidence for every n, less at 60°
+    /// (0.75 for n = 0). The sampled directions' mean cos α is (n + 1)/(n + 2)
+    /// (∫cosⁿ⁺¹α / ∫cosⁿα). 40,000 stratified samples: the estimates are good to 1e-3; a
+    /// lobe around the normal or an exponent off by one moves them by 0.01 or more.
+    #[test]
+    fn the_phong_lobe_matches_its_integrals() {
+        use std::f64::consts::PI;
+        let normal = DVec3::Z;
+        for exponent in [0.0f64, 5.0, 60.0] {
+            for deg in [0.0f64, 60.0] {
+                let a = deg.to_radians();
+                let incoming = DVec3::new(a.sin(), 0.0, -a.cos());
+                let axis = reflect(incoming, normal);
+                let (nt, np) = (400, 800);
+                let mut albedo = 0.0;
+                for i in 0..nt {
+                    let th = (i as f64 + 0.5) / nt as f64 * 0.5 * PI;
+                    for j in 0..np {
+                        let ph = (j as f64 + 0.5) / np as f64 * 2.0 * PI;
+                        let w = DVec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos());
+                        let cos_a = w.dot(axis);
+                        if cos_a <= 0.0 {
+                            continue; // beyond the lobe (α > 90°)
+                        }
+                        albedo += (exponent + 1.0) / (2.0 * PI)
+                            * cos_a.powf(exponent)
+                            * th.sin()
+                            * (0.5 * PI / nt as f64)
+                            * (2.0 * PI / np as f64);
+                    }
+                }
+                if deg == 0.0 {
+                    assert!((albedo - 1.0).abs() < 1e-3, "quadrature {albedo}");
+                }
+                let m = 200;
+                let (mut weight, mut cos_a, mut count) = (0.0, 0.0, 0.0);
+                for i in 0..m {
+                    for j in 0..m {
+                        let u1 = (i as f64 + 0.5) / m as f64;
+                        let u2 = (j as f64 + 0.5) / m as f64;
+                        count += 1.0;
+                        let Some(dir) = phong_lobe(axis, normal, exponent, u1, u2) else {
+                            continue;
+                        };
+                        assert!((dir.length() - 1.0).abs() < 1e-9);
+                        weight += 1.0;
+                        cos_a += dir.dot(axis);
+                    }
+                }
+                let (weight, cos_a) = (weight / count, cos_a / count);
+                assert!(
+                    (weight - albedo).abs() < 2e-3,
+                    "n {exponent}, {deg}°: kept {weight}, quadrature {albedo}"
+                );
+                if deg == 0.0 {
+                    let want = (exponent + 1.0) / (exponent + 2.0);
+                    assert!(
+                        (cos_a - want).abs() < 1e-3,
+                        "n {exponent}: mean cos α {cos_a}, want {want}"
+                    );
+                }
+            }
+        }
     }
 }

@@ -1,7 +1,8 @@
 //! Unbiased reference: a path tracer with next-event estimation and Russian roulette
 //! (Kajiya 1986; Veach 1997 ch. 10; as in pbrt-v4's `PathIntegrator` restricted to Lambertian
-//! surfaces, perfect mirrors and smooth glass). It shares only the scene, the BVH code and
-//! the Fresnel formulas ([`super::optics`], tested on their own) with the radiosity path.
+//! surfaces, perfect and glossy (Phong) mirrors and smooth glass). It shares only the scene,
+//! the BVH code and the Fresnel and Phong-lobe formulas ([`super::optics`], tested on their
+//! own) with the radiosity path.
 //!
 //! Light at a camera-ray hit is `Le + ρ/π ∫ L cosθ dω` plus the specular part. Emitters are
 //! sampled by power (area × channel sum of `Ke`), uniformly by area on the chosen face; light
@@ -10,6 +11,8 @@
 //! is blocked by them; a delta lobe has zero probability of being sampled towards a point), so
 //! emission reached by a specular bounce is counted when hit: at a surface with both parts one
 //! lobe is chosen by its weight, and the next hit's `Ke` counts only after the specular lobe.
+//! A glossy lobe is sampled the same way (its direction drawn from the lobe, no NEE: noisy
+//! highlights of small lights, unbiased).
 //! Glass picks reflection with the Fresnel probability, refraction otherwise (weight 1).
 //! Caustics (light through glass or off a mirror onto a diffuse surface) are found only by
 //! BSDF sampling and are noisy. Error: zero bias, noise ∝ 1/√spp.
@@ -154,18 +157,34 @@ impl<'a> PathTracer<'a> {
             }
             // Next-event estimation.
             result += throughput * m.reflectance * self.direct(x, n, rng);
-            if let Surface::Mirror { ks } = m.surface
+            let specular_lobe = match m.surface {
+                Surface::Mirror { ks } => Some((ks, None)),
+                Surface::Glossy { ks, exponent } => Some((ks, Some(exponent))),
+                _ => None,
+            };
+            if let Some((ks, exponent)) = specular_lobe
                 && !diffuse_only
             {
                 // One lobe, chosen by its weight.
                 let (wd, ws) = (m.reflectance.max_element(), ks.max_element());
                 if rng.next_f64() * (wd + ws) < ws {
+                    let mirror = optics::reflect(d, n);
+                    let dir = match exponent {
+                        None => mirror,
+                        Some(e) => {
+                            let (u1, u2) = (rng.next_f64(), rng.next_f64());
+                            match optics::phong_lobe(mirror, n, e, u1, u2) {
+                                Some(dir) => dir,
+                                None => break, // below the surface: the lobe's lost part
+                            }
+                        }
+                    };
                     throughput *= ks * ((wd + ws) / ws);
                     if throughput.max_element() <= 0.0 || depth >= 64 {
                         break;
                     }
                     count_emission = true;
-                    ray = Ray::new(x + n * self.epsilon, optics::reflect(d, n));
+                    ray = Ray::new(x + n * self.epsilon, dir);
                     continue;
                 }
                 if wd <= 0.0 {

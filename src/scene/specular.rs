@@ -1,21 +1,22 @@
 //! Specular materials from MTL: `illum`, `Ks`, `Ni`, `d` and `Tr` (the Wavefront MTL
 //! illumination models, as in the "MTL material format" of Alias|Wavefront). Why only these:
-//! the hybrid eye pass ([`crate::render::specular`]) and the path tracer handle perfect
-//! mirrors and smooth glass, the two the radiosity + ray-tracing hybrid was made for (Wallace,
-//! Cohen & Greenberg 1987).
+//! the hybrid eye pass ([`crate::render::specular`]) and the path tracer handle perfect and
+//! glossy mirrors and smooth glass, what the radiosity + ray-tracing hybrid was made for
+//! (Wallace, Cohen & Greenberg 1987; Sillion & Puech 1989).
 //!
-//! `illum` 3 or 5 with `Ks` is a mirror reflecting `Ks`; `illum` 4, 6 or 7, or `d` < 1, or
+//! `illum` 3 or 5 with `Ks` is a mirror reflecting `Ks`: perfect without `Ns` or with `Ns` ≥
+//! [`MIRROR_EXPONENT`] (1000, the top of the MTL range), else glossy, a mirror blurred by
+//! the Phong lobe of exponent `Ns` around the mirror direction. `illum` 4, 6 or 7, or `d` < 1, or
 //! `Tr` > 0, is glass of index `Ni` (default 1.5); anything else is diffuse. A file without
-//! these statements, or with the `illum 2`, `Ks`, `Ns` every exporter writes, loads as the
-//! purely diffuse scene it always was. `Ns` (a glossy Phong lobe) is accepted and ignored:
-//! mirrors are perfect, so a glossy material in a file renders as a mirror or diffuse.
-//! `Ni` ≤ 0 and `d`, `Tr` outside [0, 1] are errors naming `file:line`; a mirror whose
-//! `Ks + Kd` exceeds 1 in a channel (it would create light) gets `Ks` lowered to `1 − Kd`
-//! with a warning.
+//! these statements, or with the `illum 2`, `Ks`, `Ns` every exporter writes (a highlight
+//! for a scanline shader, not a reflection), loads as the purely diffuse scene it always
+//! was. `Ni` ≤ 0, `Ns` < 0 and `d`, `Tr` outside [0, 1] are errors naming `file:line`; a
+//! mirror whose `Ks + Kd` exceeds 1 in a channel (it would create light) gets `Ks` lowered
+//! to `1 − Kd` with a warning.
 
 use glam::DVec3;
 
-use super::{MAX_REFLECTANCE, Rgb, Surface};
+use super::{MAX_REFLECTANCE, MIRROR_EXPONENT, Rgb, Surface};
 
 /// What one material's specular statements said, for the checks that need several of them.
 #[derive(Default)]
@@ -31,6 +32,9 @@ impl SpecularScan {
     pub fn number(&mut self, key: &str, x: f64, line: usize) -> Result<(), String> {
         match key {
             "Ni" if x <= 0.0 => Err(format!("'Ni' (refractive index) must be positive, got {x}")),
+            "Ns" if x < 0.0 => Err(format!(
+                "'Ns' (specular exponent) must be 0 or more, got {x}"
+            )),
             "d" | "Tr" if !(0.0..=1.0).contains(&x) => Err(format!(
                 "'{key}' ({}) must be in [0, 1], got {x}",
                 if key == "d" {
@@ -94,7 +98,10 @@ pub(super) fn surface(m: &tobj::Material, kd: Rgb) -> Surface {
     {
         let ks = DVec3::new(ks[0], ks[1], ks[2]).min(DVec3::ONE - kd);
         if ks.max_element() > 0.0 {
-            return Surface::Mirror { ks };
+            return match m.shininess {
+                Some(exponent) if exponent < MIRROR_EXPONENT => Surface::Glossy { ks, exponent },
+                _ => Surface::Mirror { ks },
+            };
         }
     }
     Surface::Diffuse
@@ -137,6 +144,29 @@ mod tests {
         assert_eq!(surface("Kd 0 0 0\nTr 0.5"), Surface::Glass { ior: 1.5 });
     }
 
+    /// `Ns` below 1000 makes a mirror glossy with that exponent; 1000 or more, or none, keeps
+    /// it perfect; on a diffuse material (`illum` 2) `Ns` changes nothing.
+    #[test]
+    fn ns_makes_a_mirror_glossy() {
+        let ks = DVec3::new(0.8, 0.7, 0.6);
+        assert_eq!(
+            surface("Kd 0.1 0.1 0.1\nKs 0.8 0.7 0.6\nNs 40\nillum 3"),
+            Surface::Glossy { ks, exponent: 40.0 }
+        );
+        assert_eq!(
+            surface("Kd 0.1 0.1 0.1\nKs 0.8 0.7 0.6\nNs 0\nillum 5"),
+            Surface::Glossy { ks, exponent: 0.0 }
+        );
+        assert_eq!(
+            surface("Kd 0.1 0.1 0.1\nKs 0.8 0.7 0.6\nNs 1000\nillum 3"),
+            Surface::Mirror { ks }
+        );
+        assert_eq!(
+            surface("Kd 0.1 0.1 0.1\nKs 0.8 0.7 0.6\nNs 40\nillum 2"),
+            Surface::Diffuse
+        );
+    }
+
     /// What exporters write for plain materials stays diffuse, and the built-in Cornell box
     /// has no specular material.
     #[test]
@@ -157,6 +187,12 @@ mod tests {
         let kinds: Vec<_> = s.materials.iter().map(|m| m.surface).collect();
         assert!(kinds.contains(&Surface::Glass { ior: 1.5 }));
         assert!(kinds.iter().any(|k| matches!(k, Surface::Mirror { .. })));
+        let g = Scene::builtin("cornell-glossy", &LoadOptions::default()).expect("glossy");
+        assert!(g.warnings.is_empty(), "{:?}", g.warnings);
+        assert!(g.materials.iter().any(|m| matches!(
+            m.surface,
+            Surface::Glossy { exponent, .. } if exponent == 60.0
+        )));
     }
 
     #[test]
@@ -167,6 +203,7 @@ mod tests {
             ("Kd 0 0 0\nd 1.5", 3, "'d'"),
             ("Tr -0.1", 2, "'Tr'"),
             ("illum 3.5", 2, "illum"),
+            ("Ks 0.5 0.5 0.5\nNs -3\nillum 3", 3, "Ns"),
         ] {
             match load(m) {
                 Err(SceneError::Parse {

@@ -1,0 +1,148 @@
+//! `render --pass`: which second pass makes the image from the solution, and `auto` (the
+//! default): the most accurate pass whose estimated time fits what is left of the time the
+//! user gives (`--time-budget`, whole run, default [`DEFAULT_TIME_BUDGET`]).
+//!
+//! Why these two: on the Cornell box the direct pass (exact direct light per pixel) is the
+//! most accurate (1.39 % against the Mitsuba reference at the default mesh, `docs/BENCHMARKS.md`),
+//! then the vertex pass (1.69 %); the final gather at its default 64 rays is noisier than
+//! either (6.0 %), so `auto` never picks it. The vertex pass costs a fraction of a second at
+//! any size and is the fallback. The direct pass's cost grows with the pixels and the light
+//! faces, so it is measured, not guessed: a probe renders 1/16 of the pixels (a quarter of
+//! the width and height, same camera and samples) and its time is scaled by 16. Known error
+//! of the estimate: the probe's pixels are larger, so more of them straddle edges and get
+//! edge samples, and its fixed costs (the display BVH) count 16 times: it overestimates,
+//! so a run chosen to fit does fit, and one near the limit may get the vertex pass.
+
+use std::time::Instant;
+
+use anyhow::{Result, bail};
+
+use crate::render::{self, Pass, RenderSettings};
+use crate::scene::Rgb;
+use crate::solver::Problem;
+
+/// Seconds a whole `render` run may take (load to image) when `--time-budget` is not given.
+pub const DEFAULT_TIME_BUDGET: f64 = 10.0;
+/// The probe renders 1/`PROBE_SCALE`² of the pixels.
+const PROBE_SCALE: u32 = 4;
+
+/// What `--pass` and `--time-budget` ask for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PassChoice {
+    Fixed(Pass),
+    /// The most accurate pass that fits in `budget` seconds of the whole run.
+    Auto {
+        budget: f64,
+    },
+}
+
+/// Reads `--pass` and `--time-budget` (checked before any work).
+pub fn parse_pass(name: &str, budget: Option<f64>) -> Result<PassChoice> {
+    if let Some(b) = budget
+        && !(b.is_finite() && b > 0.0)
+    {
+        bail!("--time-budget must be a positive number of seconds, got {b}");
+    }
+    if name == "auto" {
+        return Ok(PassChoice::Auto {
+            budget: budget.unwrap_or(DEFAULT_TIME_BUDGET),
+        });
+    }
+    let Some(fixed) = Pass::parse(name) else {
+        bail!("unknown --pass '{name}' (expected auto, vertex, direct or gather)");
+    };
+    if budget.is_some() {
+        bail!("--time-budget chooses the pass of --pass auto; it does nothing with --pass {name}");
+    }
+    Ok(PassChoice::Fixed(fixed))
+}
+
+/// The pass chosen, and for `auto` the direct pass's estimated seconds and the budget.
+pub struct Chosen {
+    pub pass: Pass,
+    pub estimate: Option<f64>,
+    pub budget: Option<f64>,
+}
+
+impl Chosen {
+    /// One line for the user: what was chosen and why.
+    pub fn describe(&self) -> Option<String> {
+        let (estimate, budget) = (self.estimate?, self.budget?);
+        Some(match self.pass {
+            Pass::Direct => format!(
+                "pass: direct (about {estimate:.1} s, within the {budget} s budget; --pass vertex is faster)"
+            ),
+            _ => format!(
+                "pass: vertex (the direct pass would take about {estimate:.1} s, past the {budget} s budget; --time-budget or --pass direct to have it)"
+            ),
+        })
+    }
+}
+
+/// Resolves `choice` after the solve, `started` being the run's start.
+pub fn choose(
+    choice: PassChoice,
+    started: Instant,
+    problem: &Problem,
+    radiance: &[Rgb],
+    settings: &RenderSettings,
+) -> Chosen {
+    let budget = match choice {
+        PassChoice::Fixed(pass) => {
+            return Chosen {
+                pass,
+                estimate: None,
+                budget: None,
+            };
+        }
+        PassChoice::Auto { budget } => budget,
+    };
+    let probe = RenderSettings {
+        width: settings.width.div_ceil(PROBE_SCALE),
+        height: settings.height.div_ceil(PROBE_SCALE),
+        ..*settings
+    };
+    let probe_start = Instant::now();
+    render::direct::render_solution(problem, radiance, &probe);
+    let scale = (settings.width as f64 * settings.height as f64)
+        / (probe.width as f64 * probe.height as f64);
+    let estimate = probe_start.elapsed().as_secs_f64() * scale;
+    let fits = started.elapsed().as_secs_f64() + estimate <= budget;
+    Chosen {
+        pass: if fits { Pass::Direct } else { Pass::Vertex },
+        estimate: Some(estimate),
+        budget: Some(budget),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pass_and_budget_are_read_together() {
+        assert_eq!(
+            parse_pass("auto", None).expect("auto"),
+            PassChoice::Auto {
+                budget: DEFAULT_TIME_BUDGET
+            }
+        );
+        assert_eq!(
+            parse_pass("auto", Some(2.5)).expect("auto"),
+            PassChoice::Auto { budget: 2.5 }
+        );
+        assert_eq!(
+            parse_pass("direct", None).expect("direct"),
+            PassChoice::Fixed(Pass::Direct)
+        );
+        for (name, budget, message) in [
+            ("photon", None, "unknown --pass 'photon'"),
+            ("vertex", Some(3.0), "does nothing with --pass vertex"),
+            ("auto", Some(0.0), "--time-budget must be a positive"),
+            ("auto", Some(f64::NAN), "--time-budget must be a positive"),
+        ] {
+            let e = parse_pass(name, budget).expect_err(name).to_string();
+            assert!(e.contains(message), "{name} {budget:?}: {e}");
+        }
+    }
+}
