@@ -7,17 +7,18 @@
 //! then the vertex pass (1.69 %); the final gather at its default 64 rays is noisier than
 //! either (6.0 %), so `auto` never picks it. The vertex pass costs a fraction of a second at
 //! any size and is the fallback. The direct pass's cost grows with the pixels and the light
-//! faces, so it is measured, not guessed: a probe renders 1/16 of the pixels (a quarter of
+//! faces, so it is measured, not guessed: its per-solution work (indirect vertex radiance,
+//! display BVH, lights) is done once, then a probe renders 1/16 of the pixels (a quarter of
 //! the width and height, same camera and samples) and its time is scaled by 16. Known error
 //! of the estimate: the probe's pixels are larger, so more of them straddle edges and get
-//! edge samples, and its fixed costs (the display BVH) count 16 times: it overestimates,
-//! so a run chosen to fit does fit, and one near the limit may get the vertex pass.
+//! edge samples; it overestimates a little, so a run chosen to fit does fit, and one near
+//! the limit may get the vertex pass.
 
 use std::time::Instant;
 
 use anyhow::{Result, bail};
 
-use crate::render::{self, Pass, RenderSettings};
+use crate::render::{self, Image, Pass, RenderSettings};
 use crate::scene::Rgb;
 use crate::solver::Problem;
 
@@ -79,40 +80,55 @@ impl Chosen {
     }
 }
 
-/// Resolves `choice` after the solve, `started` being the run's start.
-pub fn choose(
+/// Renders the image `choice` asks for after the solve (`started`: the run's start;
+/// `gather_rays`: for `--pass gather`): for `auto`, the direct pass's per-solution work is
+/// done once, a probe of 1/16 of the pixels is timed, and the direct pass is taken when the
+/// run so far plus the probe's time scaled to the image fits the budget.
+pub fn render_chosen(
     choice: PassChoice,
     started: Instant,
     problem: &Problem,
     radiance: &[Rgb],
     settings: &RenderSettings,
-) -> Chosen {
+    gather_rays: u32,
+) -> (Chosen, Image) {
     let budget = match choice {
         PassChoice::Fixed(pass) => {
-            return Chosen {
+            let image = pass.render(problem, radiance, settings, gather_rays);
+            let chosen = Chosen {
                 pass,
                 estimate: None,
                 budget: None,
             };
+            return (chosen, image);
         }
         PassChoice::Auto { budget } => budget,
     };
+    let direct = render::direct::Prepared::new(problem, radiance);
     let probe = RenderSettings {
         width: settings.width.div_ceil(PROBE_SCALE),
         height: settings.height.div_ceil(PROBE_SCALE),
         ..*settings
     };
     let probe_start = Instant::now();
-    render::direct::render_solution(problem, radiance, &probe);
+    direct.render(&probe);
     let scale = (settings.width as f64 * settings.height as f64)
         / (probe.width as f64 * probe.height as f64);
     let estimate = probe_start.elapsed().as_secs_f64() * scale;
     let fits = started.elapsed().as_secs_f64() + estimate <= budget;
-    Chosen {
-        pass: if fits { Pass::Direct } else { Pass::Vertex },
+    let (pass, image) = if fits {
+        (Pass::Direct, direct.render(settings))
+    } else {
+        drop(direct);
+        let image = Pass::Vertex.render(problem, radiance, settings, gather_rays);
+        (Pass::Vertex, image)
+    };
+    let chosen = Chosen {
+        pass,
         estimate: Some(estimate),
         budget: Some(budget),
-    }
+    };
+    (chosen, image)
 }
 
 #[cfg(test)]

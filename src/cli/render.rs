@@ -10,7 +10,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::method::{MethodArgs, parse_method, raster_for};
-use super::pass::{choose, parse_pass};
+use super::pass::{parse_pass, render_chosen};
 use super::{MAX_RAYS, MAX_VIS_RAYS, SceneArgs, ViewArgs, check_count, check_output};
 use crate::formfactor::FormFactorParams;
 use crate::render::{self, Image};
@@ -382,11 +382,15 @@ fn render(args: &RenderArgs) -> Result<()> {
     let (problem, rows) = solver.into_parts();
     drop(rows);
 
-    let chosen = choose(pass_choice, process_start, &problem, &radiance, &settings);
     let render_start = Instant::now();
-    let image = chosen
-        .pass
-        .render(&problem, &radiance, &settings, args.gather_rays);
+    let (chosen, image) = render_chosen(
+        pass_choice,
+        process_start,
+        &problem,
+        &radiance,
+        &settings,
+        args.gather_rays,
+    );
     let render_seconds = render_start.elapsed().as_secs_f64();
     image.save(&args.out, args.exposure)?;
 

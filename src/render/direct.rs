@@ -226,14 +226,37 @@ pub fn render_solution(
     radiance: &[Rgb],
     settings: &RenderSettings,
 ) -> Image {
-    let vertex = indirect_vertex_radiance(problem, radiance);
-    let bvh = super::display_bvh(&problem.scene, &problem.mesh);
-    let view = SolutionView {
-        scene: &problem.scene,
-        mesh: &problem.mesh,
-        vertex_radiance: &vertex,
-        bvh: &bvh,
-    };
-    let lights = DirectLight::new(&problem.scene, &problem.mesh, &problem.bvh, problem.epsilon);
-    render(&view, &lights, settings)
+    Prepared::new(problem, radiance).render(settings)
+}
+
+/// What the direct pass computes once per solution (the indirect vertex radiance, the display
+/// BVH, the lights), so that several images of one solution (a probe, then the image) pay
+/// for it once.
+pub struct Prepared<'a> {
+    problem: &'a crate::solver::Problem,
+    vertex: Vec<Rgb>,
+    bvh: Bvh,
+    lights: DirectLight<'a>,
+}
+
+impl<'a> Prepared<'a> {
+    pub fn new(problem: &'a crate::solver::Problem, radiance: &[Rgb]) -> Self {
+        Self {
+            problem,
+            vertex: indirect_vertex_radiance(problem, radiance),
+            bvh: super::display_bvh(&problem.scene, &problem.mesh),
+            lights: DirectLight::new(&problem.scene, &problem.mesh, &problem.bvh, problem.epsilon),
+        }
+    }
+
+    /// The image [`render_solution`] makes.
+    pub fn render(&self, settings: &RenderSettings) -> Image {
+        let view = SolutionView {
+            scene: &self.problem.scene,
+            mesh: &self.problem.mesh,
+            vertex_radiance: &self.vertex,
+            bvh: &self.bvh,
+        };
+        render(&view, &self.lights, settings)
+    }
 }
