@@ -86,7 +86,16 @@ pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
             rows.push(measure(kind, format!("budget {budget}"), config, None)?);
         }
     }
-    for (budget, tolerance) in [(1_250, 0.1), (2_500, 0.1), (5_000, 0.1), (5_000, 0.05)] {
+    for (budget, tolerance) in [
+        (1_250, 0.1),
+        (2_500, 0.1),
+        (5_000, 0.15),
+        (6_000, 0.15),
+        (8_000, 0.2),
+        (5_000, 0.1),
+        (10_000, 0.15),
+        (5_000, 0.05),
+    ] {
         let config = SolverConfig {
             max_elements: Some(budget),
             ..Default::default()

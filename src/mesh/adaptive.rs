@@ -48,16 +48,11 @@ pub fn refine_levels(
             .map(|j| {
                 let e = &mesh.elements[j as usize];
                 let own = value(radiance[j as usize]);
-                let ids = e.vertex_ids();
-                let spread = if std::env::var("NUSSELT_INDICATOR").as_deref() == Ok("mean") {
-                    let mean = ids.iter().map(|&v| value(vertex[v as usize])).sum::<f64>()
-                        / ids.len().max(1) as f64;
-                    (mean - own).abs()
-                } else {
-                    ids.iter()
-                        .map(|&v| (value(vertex[v as usize]) - own).abs())
-                        .fold(0.0, f64::max)
-                };
+                let spread = e
+                    .vertex_ids()
+                    .iter()
+                    .map(|&v| (value(vertex[v as usize]) - own).abs())
+                    .fold(0.0, f64::max);
                 spread / own.max(floor).max(1e-300)
             })
             .fold(0.0, f64::max);
