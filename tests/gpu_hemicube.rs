@@ -258,3 +258,42 @@ fn gpu_hemicube_solves_the_cornell_box_like_the_cpu_hemicube() {
         assert!((c - g).abs() <= tol, "{}: {c} vs {g}", case.name);
     }
 }
+
+/// OpenGL (here Mesa's llvmpipe through EGL, which `.ci/run` installs) is refused with a
+/// message that says why, instead of rasterising item buffers whose depths `near/D` its
+/// `2z − 1` depth remap rounds to the cleared 0 (every polygon failed the depth test and
+/// the form factors came out zero: `gpu_honours_occluders_like_the_cpu` read 0 for 0.338).
+/// Run as a child process with `WGPU_BACKEND=gl`; without any OpenGL adapter the refusal is
+/// "no GPU adapter", which only counts outside CI.
+#[test]
+fn opengl_is_refused_with_the_reason() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_nusselt"))
+        .args([
+            "render",
+            "--builtin",
+            "cornell",
+            "--formfactor",
+            "gpu-hemicube",
+            "--shots",
+            "1",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--out",
+        ])
+        .arg(std::env::temp_dir().join("nusselt_opengl_refused.pfm"))
+        .env("WGPU_BACKEND", "gl")
+        .output()
+        .expect("run nusselt");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "rendered on OpenGL: {stderr}");
+    if stderr.contains("no GPU adapter") && !common::in_ci() {
+        eprintln!("skipped: no OpenGL adapter on this machine ({stderr})");
+        return;
+    }
+    assert!(
+        stderr.contains("OpenGL") && stderr.contains("Vulkan"),
+        "{stderr}"
+    );
+}

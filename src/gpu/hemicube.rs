@@ -45,6 +45,10 @@ pub enum GpuError {
     NoVertexStorage(String),
     #[error("could not open the GPU device: {0}")]
     Device(String),
+    #[error(
+        "the only GPU adapter is OpenGL ('{0}'), which remaps depth to [-1, 1] and loses the precision near 0 that the item buffer's near/D depth needs (polygons vanish): the GPU hemicube needs Vulkan, Metal or DX12 (on Linux without a GPU: apt-get install mesa-vulkan-drivers libvulkan1); the CPU hemicube gives the same form factors"
+    )]
+    OpenGl(String),
 }
 
 /// One face's transform, as the shader's `Face` struct.
@@ -132,18 +136,40 @@ struct Target {
 }
 
 impl GpuHemicube {
-    /// Opens the first adapter wgpu finds (any backend; `WGPU_BACKEND` narrows it) and
-    /// builds the pipeline.
+    /// Opens the first adapter wgpu finds (`WGPU_BACKEND` narrows the backends) other than
+    /// OpenGL and builds the pipeline. OpenGL is refused ([`GpuError::OpenGl`]): without
+    /// clip control its depth goes through `2z − 1`, which rounds the item buffer's depths
+    /// `near/D` (1e-9 and less for a near plane of 1e-9) to the cleared 0, so polygons fail
+    /// the depth test and the form factors come out zero.
     pub fn new() -> Result<Self, GpuError> {
-        let instance =
-            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        let from_env = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        let allowed = from_env.backends;
+        let options = wgpu::RequestAdapterOptions {
             power_preference: wgpu::PowerPreference::HighPerformance,
             force_fallback_adapter: false,
             compatible_surface: None,
             apply_limit_buckets: false,
-        }))
-        .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        };
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends: allowed - wgpu::Backends::GL,
+            ..from_env
+        });
+        let adapter = match pollster::block_on(instance.request_adapter(&options)) {
+            Ok(adapter) => adapter,
+            Err(e) => {
+                // Say so when OpenGL is what there is.
+                if allowed.contains(wgpu::Backends::GL) {
+                    let gl = wgpu::Instance::new(wgpu::InstanceDescriptor {
+                        backends: wgpu::Backends::GL,
+                        ..wgpu::InstanceDescriptor::new_without_display_handle_from_env()
+                    });
+                    if let Ok(a) = pollster::block_on(gl.request_adapter(&options)) {
+                        return Err(GpuError::OpenGl(a.get_info().name));
+                    }
+                }
+                return Err(GpuError::NoAdapter(e.to_string()));
+            }
+        };
         let info = adapter.get_info();
         let name = format!("{} ({:?})", info.name, info.backend);
         if !adapter
