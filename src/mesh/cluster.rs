@@ -113,7 +113,7 @@ pub(super) fn cluster_patch(
 }
 
 /// Counter-clockwise convex hull (Andrew's monotone chain); collinear points dropped.
-fn convex_hull_2d(points: &mut [(f64, f64)]) -> Vec<(f64, f64)> {
+pub(super) fn convex_hull_2d(points: &mut [(f64, f64)]) -> Vec<(f64, f64)> {
     points.sort_by(|a, b| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal));
     if points.len() < 3 {
         return points.to_vec();

@@ -1,20 +1,23 @@
 //! A priori discontinuity meshing of the lights' shadows (Heckbert 1992; Lischinski,
 //! Tampieri & Greenberg 1992), for `--discontinuity`: before the mesh is cut into patches
-//! and elements, every large planar unit is cut along the shadow outlines that each light
-//! vertex casts through each blocker face, so element edges lie on the boundaries of the
+//! and elements, every large planar unit is cut along the lines where a light starts or
+//! stops being hidden by a blocker face, so element edges lie on the boundaries of the
 //! umbrae and penumbrae instead of across them.
 //!
 //! For a light vertex `v` in front of receiver `P` and a face `Q` that faces `v` and lies
 //! wholly between `v` and `P`'s plane, `Q` projected centrally from `v` onto the plane is
-//! the region that `v` cannot see; its outline is made of first-order (EV) discontinuity
-//! lines of the light's visibility. The outlines of all light vertices bound the
-//! penumbra's vertex-edge events; the edge-vertex and edge-edge events of general scenes
-//! (and higher-order ones) are not found here, and faces that straddle `v`'s height are
-//! skipped. Contact lines, the zeroth order, are `footprint.rs`. The outlines are inserted
-//! as the boundaries of convex pieces ([`super::footprint`]'s cut), and each piece is
-//! meshed on its own, so an element edge follows every line; where pieces meet, their
-//! elements need not share vertices (the display interpolates per vertex position, as
-//! across any two units).
+//! the region that `v` cannot see; its sides are the vertex-edge (VE) events of `v` with
+//! `Q`'s edges. For a light edge `ab`, the region some point of `ab` cannot see is the
+//! convex hull of `a`'s and `b`'s regions; the hull's sides that join the two are the
+//! edge-vertex (EV) events of `ab` with `Q`'s vertices (planes through `ab` that touch
+//! `Q`). Both are cut: together they are the first-order (D1) discontinuities of a convex
+//! light and one convex blocker, the penumbra's outer boundary and the umbra's among them. Edge-edge events between
+//! several blockers (quadric surfaces in general) and higher-order ones are not found here,
+//! and faces that straddle `v`'s height are skipped. Contact lines, the zeroth order, are
+//! `footprint.rs`. The lines are inserted as the boundaries of convex pieces
+//! ([`super::footprint`]'s cut), and each piece is meshed on its own, so an element edge
+//! follows every line; where pieces meet, their elements need not share vertices (the
+//! display interpolates per vertex position, as across any two units).
 //!
 //! Known error: the radiance is still constant per element; what changes is where the
 //! element boundaries are. Cuts are capped per unit ([`MAX_CUTS`]) so triangulated models
@@ -22,8 +25,10 @@
 
 use glam::DVec3;
 
+use super::cluster::convex_hull_2d;
 use super::footprint::{Piece, cut, overlaps};
 use crate::geometry::polygon;
+use crate::geometry::sampling::basis;
 use crate::scene::Scene;
 
 /// Most shadow outlines cut into one unit.
@@ -60,33 +65,67 @@ pub(super) fn split(pieces: Vec<Piece>, scene: &Scene, patch_area: f64) -> Vec<P
         let origin = p.poly[0];
         let mut parts = vec![p.poly.clone()];
         let mut cuts = 0;
-        'light: for light in &lights {
-            for &v in light.iter() {
-                let hv = (v - origin).dot(n);
-                if hv <= 0.0 {
-                    continue;
-                }
-                for (q, nq) in &blockers {
-                    if cuts >= MAX_CUTS {
-                        break 'light;
+        let mut outlines = Vec::new();
+        for light in &lights {
+            for (q, nq) in &blockers {
+                // What each light vertex cannot see of the plane (vertex-edge events) …
+                let shadows: Vec<Option<Vec<DVec3>>> = light
+                    .iter()
+                    .map(|&v| {
+                        let hv = (v - origin).dot(n);
+                        (hv > 0.0)
+                            .then(|| shadow(v, hv, q, *nq, origin, n))
+                            .flatten()
+                    })
+                    .collect();
+                outlines.extend(shadows.iter().flatten().cloned());
+                // … and what the points of each light edge cannot see: the hull of its two
+                // ends' shadows, whose sides joining them are edge-vertex events.
+                for k in 0..shadows.len() {
+                    if let (Some(a), Some(b)) = (&shadows[k], &shadows[(k + 1) % shadows.len()])
+                        && let Some(hull) = hull_in_plane(a, b, origin, n)
+                    {
+                        outlines.push(hull);
                     }
-                    let Some(shadow) = shadow(v, hv, q, *nq, origin, n) else {
-                        continue;
-                    };
-                    if !overlaps(&p.poly, &shadow, n) {
-                        continue;
-                    }
-                    cuts += 1;
-                    parts = parts
-                        .into_iter()
-                        .flat_map(|r| cut(&r, &shadow, n, 1e-9 * area))
-                        .collect();
                 }
             }
+        }
+        for outline in outlines {
+            if cuts >= MAX_CUTS {
+                break;
+            }
+            if !overlaps(&p.poly, &outline, n) {
+                continue;
+            }
+            cuts += 1;
+            parts = parts
+                .into_iter()
+                .flat_map(|r| cut(&r, &outline, n, 1e-9 * area))
+                .collect();
         }
         out.extend(parts.into_iter().map(|poly| Piece { poly, face: p.face }));
     }
     out
+}
+
+/// The convex hull of two convex polygons in the plane through `origin` with normal `n`,
+/// counter-clockwise about `n`; `None` when it is degenerate or is one of the two (the other
+/// inside it: no new line).
+fn hull_in_plane(a: &[DVec3], b: &[DVec3], origin: DVec3, n: DVec3) -> Option<Vec<DVec3>> {
+    let (t, s) = basis(n);
+    let mut points: Vec<(f64, f64)> = a
+        .iter()
+        .chain(b)
+        .map(|p| ((*p - origin).dot(t), (*p - origin).dot(s)))
+        .collect();
+    let hull = convex_hull_2d(&mut points);
+    if hull.len() < 3 {
+        return None;
+    }
+    let out: Vec<DVec3> = hull.iter().map(|(x, y)| origin + t * *x + s * *y).collect();
+    let area = polygon::area(&out);
+    let same = |p: &[DVec3]| (polygon::area(p) - area).abs() <= 1e-9 * area;
+    (area > 0.0 && !same(a) && !same(b)).then_some(out)
 }
 
 /// `q` projected from `v` (at height `hv` above the plane through `origin` with normal `n`)
@@ -175,6 +214,67 @@ usemtl light\nf 9 10 11 12\n";
             face: 0,
         };
         assert_eq!(split(vec![floor], &dark, 1.0).len(), 1);
+    }
+}
+
+/// Edge-vertex events: a square light (corners (±0.5, 4, ±0.5)) over a diamond blocker
+/// (tips (±1, 2, 0), (0, 2, ±1)) over the floor. The penumbra's outer boundary is the
+/// Minkowski sum of the doubled diamond and the mirrored light, an octagon of area 17
+/// (a 5 × 5 square less four corner triangles of legs 2). Its slanted sides are shadow
+/// edges of single light vertices (vertex-edge); its four short sides, e.g. (2.5, ±0.5),
+/// are traced by a diamond tip seen from the points of a light edge (edge-vertex), on no
+/// single vertex's shadow. The octagon must be a union of pieces: pieces wholly inside sum
+/// to 17 and none straddles it (without the edge-vertex lines pieces crossed the short
+/// sides).
+#[cfg(test)]
+mod edge_vertex_tests {
+    use super::*;
+    use crate::scene::LoadOptions;
+
+    #[test]
+    fn the_penumbras_outer_boundary_is_cut_along_edge_vertex_lines() {
+        let obj = "mtllib s.mtl
+v -10 0 -10\nv 10 0 -10\nv 10 0 10\nv -10 0 10
+v 1 2 0\nv 0 2 1\nv -1 2 0\nv 0 2 -1
+v -0.5 4 -0.5\nv 0.5 4 -0.5\nv 0.5 4 0.5\nv -0.5 4 0.5
+usemtl floor\nf 1 4 3 2
+usemtl block\nf 5 8 7 6
+usemtl light\nf 9 10 11 12\n";
+        let mtl =
+            "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl block\nKd 0.5 0.5 0.5\nnewmtl light\nKe 1 1 1\n";
+        let scene = Scene::from_obj_str("s.obj", obj, &[("s.mtl", mtl)], &LoadOptions::default())
+            .expect("scene");
+        let floor = Piece {
+            poly: scene.faces[0].vertices.clone(),
+            face: 0,
+        };
+        let pieces = split(vec![floor], &scene, 1.0);
+        // The octagon as half-planes |x| ≤ 2.5, |z| ≤ 2.5, |x| + |z| ≤ 3.
+        let depth = |p: DVec3| {
+            (p.x.abs() - 2.5)
+                .max(p.z.abs() - 2.5)
+                .max(p.x.abs() + p.z.abs() - 3.0)
+        };
+        let (mut inside, mut straddling) = (0.0, 0);
+        for p in &pieces {
+            let deepest = p
+                .poly
+                .iter()
+                .map(|v| depth(*v))
+                .fold(f64::INFINITY, f64::min);
+            let shallowest = p
+                .poly
+                .iter()
+                .map(|v| depth(*v))
+                .fold(f64::NEG_INFINITY, f64::max);
+            if shallowest <= 1e-9 {
+                inside += polygon::area(&p.poly);
+            } else if deepest < -1e-9 {
+                straddling += 1;
+            }
+        }
+        assert_eq!(straddling, 0, "pieces cross the penumbra's outer boundary");
+        assert!((inside - 17.0).abs() < 1e-6, "inside the octagon: {inside}");
     }
 }
 
