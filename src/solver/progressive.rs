@@ -38,7 +38,10 @@ use crate::scene::{MaterialId, Rgb, Scene};
 use super::ambient::RegionalAmbient;
 use super::problem::Problem;
 use super::rows::RowCache;
-use super::{ShotRecord, Solver, SolverConfig, SolverError, StopCriteria, channel_sum};
+use super::{ShotRecord, SolverConfig, SolverError, StopCriteria, channel_sum};
+
+mod display;
+mod solver_impl;
 
 /// Patches whose shot powers are within this relative difference are tied for the next
 /// shot and the first in index order wins. Symmetric patches have equal powers up to the
@@ -220,86 +223,6 @@ impl ProgressiveSolver {
         }
     }
 
-    /// The ambient term (Cohen et al. 1988): an estimate of the light not yet shot.
-    pub fn ambient(&self) -> Rgb {
-        if self.total_area <= 0.0 {
-            return Rgb::ZERO;
-        }
-        let mut rho = Rgb::ZERO;
-        let mut unshot = Rgb::ZERO;
-        for (p, u) in self.problem.mesh.patches.iter().zip(&self.unshot) {
-            rho += self.problem.scene.materials[p.material.0 as usize].reflectance * p.area;
-            unshot += *u * p.area;
-        }
-        let rho_avg = rho / self.total_area;
-        let r = Rgb::ONE / (Rgb::ONE - rho_avg).max(Rgb::splat(1e-6));
-        r * unshot / self.total_area
-    }
-
-    /// The regional ambient term per patch ([`super::ambient`]): the light still to arrive
-    /// per unit reflectance. Builds the regions on first use.
-    pub fn regional_ambient(&self) -> Vec<Rgb> {
-        let regional = self
-            .regional
-            .get_or_init(|| RegionalAmbient::build(&self.problem));
-        let patches = &self.problem.mesh.patches;
-        let area: Vec<f64> = patches.iter().map(|p| p.area).collect();
-        let rho: Vec<Rgb> = patches
-            .iter()
-            .map(|p| self.problem.scene.materials[p.material.0 as usize].reflectance)
-            .collect();
-        regional.incoming(&area, &self.unshot, &rho)
-    }
-
-    /// Per-element radiance for display: `B_j + ρ_j · G_j` when `with_ambient`, `G` the
-    /// regional ambient term or (`regional_ambient` off) the classic one.
-    ///
-    /// With overshooting the ambient term can be negative (light sent ahead and not yet
-    /// cancelled: the image is too bright on average, and the term is still exact on
-    /// average in a closed uniform scene); an element it would take below zero shows 0.
-    pub fn element_radiance(&self, with_ambient: bool) -> Vec<Rgb> {
-        if !with_ambient {
-            return self.radiosity.clone();
-        }
-        if self.problem.config.regional_ambient {
-            self.shown_with(&self.regional_ambient())
-        } else {
-            self.element_radiance_global_ambient()
-        }
-    }
-
-    /// [`element_radiance`](Self::element_radiance) with the classic global ambient term,
-    /// whatever the configuration (for comparing the two).
-    pub fn element_radiance_global_ambient(&self) -> Vec<Rgb> {
-        self.shown_with(&vec![self.ambient(); self.problem.mesh.patches.len()])
-    }
-
-    /// `max(B_j + ρ_j G_p, 0)` per element, `G_p` the ambient term of its patch.
-    fn shown_with(&self, per_patch: &[Rgb]) -> Vec<Rgb> {
-        self.radiosity
-            .iter()
-            .zip(&self.element_rho)
-            .zip(&self.problem.mesh.elements)
-            .map(|((b, rho), e)| (*b + *rho * per_patch[e.patch.0 as usize]).max(Rgb::ZERO))
-            .collect()
-    }
-
-    /// What a shot from each patch would send beyond its unshot radiance: `ρ_i · ambient`
-    /// with overshooting (never negative), nothing without.
-    ///
-    /// Never negative keeps every radiosity non-negative: what patch `i` has shot in all,
-    /// `T_i = B_i − U_i`, is 0 before its first shot and `B_i + X_i ≥ B_i` after each
-    /// (`U_i = −X_i`, `X_i ≥ 0`), so by induction every `T ≥ 0`, every incident
-    /// `H_j = Σ F_ji T_i ≥ 0` and every `B_j = E_j + ρ_j H_j ≥ 0`. A negative ambient
-    /// (overshot light not yet cancelled) would break the chain.
-    fn overshoot_basis(&self) -> Rgb {
-        if self.problem.config.overshoot {
-            self.ambient().max(Rgb::ZERO)
-        } else {
-            Rgb::ZERO
-        }
-    }
-
     /// The patch whose shot would carry the most power, `|ΔB_i + ρ_i·ambient|·A_i` with
     /// overshooting and `|ΔB_i|·A_i` without, if any power is left.
     pub fn next_shooter(&self) -> Option<PatchId> {
@@ -464,83 +387,6 @@ impl ProgressiveSolver {
             absorbed += (Rgb::ONE - m.reflectance) * *h * e.area;
         }
         (emitted, absorbed)
-    }
-}
-
-impl Solver for ProgressiveSolver {
-    fn name(&self) -> &'static str {
-        "shooting"
-    }
-    fn problem(&self) -> &Problem {
-        &self.problem
-    }
-    fn step(&mut self, cancel: &AtomicBool) -> bool {
-        self.shoot(cancel).is_some()
-    }
-    fn steps(&self) -> usize {
-        self.shots
-    }
-    fn radiosity(&self) -> &[Rgb] {
-        &self.radiosity
-    }
-    fn residual(&self) -> f64 {
-        self.unshot_fraction()
-    }
-    fn element_radiance(&self, with_ambient: bool) -> Vec<Rgb> {
-        ProgressiveSolver::element_radiance(self, with_ambient)
-    }
-    fn set_material(
-        &mut self,
-        id: MaterialId,
-        reflectance: Rgb,
-        emission: Rgb,
-    ) -> Result<(), SolverError> {
-        ProgressiveSolver::set_material(self, id, reflectance, emission)
-    }
-    fn reset(&mut self) {
-        ProgressiveSolver::reset(self)
-    }
-    fn ambient(&self) -> Rgb {
-        ProgressiveSolver::ambient(self)
-    }
-    fn matrix_bytes(&self) -> usize {
-        self.rows.bytes()
-    }
-    fn last_shooter(&self) -> Option<PatchId> {
-        self.last_shooter
-    }
-    /// `ρ_j |G_j|` over what the element shows, `G` the regional ambient term (the light the
-    /// unshot power is expected to bring).
-    fn error_estimate(&self) -> f64 {
-        let g = self.regional_ambient();
-        let floor = super::error_floor(&self.problem, &self.radiosity);
-        self.radiosity
-            .iter()
-            .zip(&self.element_rho)
-            .zip(&self.problem.mesh.elements)
-            .map(|((b, rho), e)| {
-                let missing = (*rho * g[e.patch.0 as usize]).abs();
-                let shown = (*b + *rho * g[e.patch.0 as usize]).max(Rgb::ZERO);
-                (missing / shown.max(Rgb::splat(floor))).max_element()
-            })
-            .fold(0.0, f64::max)
-    }
-    fn unshot(&self) -> Option<&[Rgb]> {
-        Some(&self.unshot)
-    }
-    fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
-        (self.problem, self.rows)
-    }
-    fn report(&self) -> String {
-        format!(
-            "{} shots{}",
-            self.shots,
-            if self.problem.config.overshoot {
-                ", overshooting"
-            } else {
-                ""
-            }
-        )
     }
 }
 

@@ -32,14 +32,13 @@
 use std::f64::consts::PI;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use glam::DVec3;
 use rayon::prelude::*;
+
+mod estimate;
 
 use super::flatlet::{BlockDecision, BlockLink};
 use super::tree::{Hierarchy, Node};
-use crate::formfactor::contour;
-use crate::geometry::sampling::{hash_seed, triangle_point};
-use crate::geometry::{Bvh, Ray, Rng, polygon};
+use crate::geometry::Bvh;
 use crate::mesh::Mesh;
 use crate::scene::Rgb;
 
@@ -387,160 +386,5 @@ impl Linker<'_> {
             kernel: k * v,
             bound: kb * if partial { 1.0 } else { variation },
         }
-    }
-
-    /// Normal-incidence kernel at `x` facing `dir` (towards the sender's centroid).
-    fn normal_incidence(&self, x: DVec3, dir: DVec3, j: u32) -> f64 {
-        let nj = self.node(j);
-        if nj.is_leaf() {
-            let e = &self.mesh.elements[self.tree.order[nj.first as usize] as usize];
-            return contour::point_to_polygon_with_normal(x, dir, e.corners(), e.normal);
-        }
-        let r2 = (nj.centroid - x).length_squared();
-        if let Some(a) = self.tree.projected_area(j, -dir) {
-            (a / (PI * r2)).min(1.0)
-        } else {
-            let cos_j = (-nj.normal.dot(dir)).max(0.0);
-            nj.area * cos_j / (PI * r2 + nj.area)
-        }
-    }
-
-    /// The unoccluded kernel estimate (module docs) and its spread (largest minus smallest)
-    /// over the receiver's sample points.
-    fn unoccluded(&self, i: u32, j: u32) -> (f64, f64) {
-        let (ni, nj) = (self.node(i), self.node(j));
-        let sender = |x: DVec3, n: DVec3| -> f64 {
-            if nj.is_leaf() {
-                let e = &self.mesh.elements[self.tree.order[nj.first as usize] as usize];
-                contour::point_to_polygon_with_normal(x, n, e.corners(), e.normal)
-            } else {
-                let d = nj.centroid - x;
-                let r2 = d.length_squared();
-                if r2 <= 0.0 {
-                    return 0.0;
-                }
-                let r = r2.sqrt();
-                let cos_i = (n.dot(d) / r).max(0.0);
-                if let Some(a) = self.tree.projected_area(j, -d / r) {
-                    (a / (PI * r2)).min(1.0) * cos_i
-                } else {
-                    // Four sub-sources at stratified element centroids: one at the
-                    // centroid underestimates a large sender seen obliquely.
-                    let a = nj.area / SENDER_POINTS as f64;
-                    (0..SENDER_POINTS)
-                        .map(|k| {
-                            let u = (k as f64 + 0.5) / SENDER_POINTS as f64;
-                            let e = &self.mesh.elements[self.tree.element_at(nj, u) as usize];
-                            let d = e.centroid - x;
-                            let r2 = d.length_squared().max(f64::MIN_POSITIVE);
-                            let r = r2.sqrt();
-                            let cos_i = (n.dot(d) / r).max(0.0);
-                            let cos_j = (-nj.normal.dot(d) / r).max(0.0);
-                            a * cos_i * cos_j / (PI * r2 + a)
-                        })
-                        .sum()
-                }
-            }
-        };
-        if ni.is_leaf() {
-            return (sender(ni.centroid, ni.normal), 0.0);
-        }
-        let mut rng = Rng::new(hash_seed(&[self.seed, i as u64, j as u64]), 1);
-        let (mut sum, mut lo, mut hi) = (0.0, f64::INFINITY, 0.0f64);
-        for k in 0..RECEIVER_POINTS {
-            let u = (k as f64 + rng.next_f64()) / RECEIVER_POINTS as f64;
-            let e = &self.mesh.elements[self.tree.element_at(ni, u) as usize];
-            let f = sender(e.centroid, e.normal);
-            sum += f;
-            lo = lo.min(f);
-            hi = hi.max(f);
-        }
-        (sum / RECEIVER_POINTS as f64, hi - lo)
-    }
-
-    /// Fraction of shadow rays between area-sampled points of `i` and `j` that arrive.
-    fn visibility(&self, i: u32, j: u32) -> f64 {
-        let (ni, nj) = (self.node(i), self.node(j));
-        let mut rng = Rng::new(hash_seed(&[self.seed, i as u64, j as u64]), 2);
-        let leaf_end = ni.is_leaf() || nj.is_leaf();
-        let mut seen = 0u32;
-        let mut total = 0u32;
-        let (mut w_seen, mut w_total) = (0.0, 0.0);
-        loop {
-            let rays = if total == 0 {
-                RAYS
-            } else {
-                RAYS_PARTIAL - RAYS
-            };
-            let m = if total == 0 { 2 } else { 3 };
-            for k in 0..rays {
-                // Stratified on the receiver's and the sender's area; a leaf receiver looks
-                // from its centroid, where its kernel is evaluated.
-                let (a, c) = (k % m, (k / m) % m);
-                let ui = (a as f64 + rng.next_f64()) / m as f64;
-                let uj = (c as f64 + rng.next_f64()) / m as f64;
-                let (x, nx, gx) = if ni.is_leaf() {
-                    let e = self.tree.order[ni.first as usize] as usize;
-                    let group = self.mesh.patches[self.mesh.elements[e].patch.0 as usize].occluder;
-                    (ni.centroid, ni.normal, group)
-                } else {
-                    self.point_on(ni, ui, &mut rng)
-                };
-                let (y, ny, gy) = self.point_on(nj, uj, &mut rng);
-                let o = x + nx * self.epsilon;
-                let t = y + ny * self.epsilon;
-                let d = t - o;
-                let blocked = self
-                    .bvh
-                    .any_hit_except(&Ray::new(o, d), 1e-9, 1.0 - 1e-9, [gx, gy]);
-                // Weighted by the point-to-point kernel cosθ_x cosθ_y / r² (Wallace,
-                // Elmquist & Haines 1989), as the contour rows weigh theirs.
-                let r2 = d.length_squared();
-                let w =
-                    nx.dot(d).max(0.0) * (-ny.dot(d)).max(0.0) / (r2 * r2).max(f64::MIN_POSITIVE);
-                w_total += w;
-                if !blocked {
-                    seen += 1;
-                    w_seen += w;
-                }
-                total += 1;
-            }
-            if total >= RAYS_PARTIAL || !leaf_end || seen == 0 || seen == total {
-                break;
-            }
-        }
-        if w_total > 0.0 {
-            w_seen / w_total
-        } else {
-            seen as f64 / total as f64
-        }
-    }
-
-    /// An area-uniform point of `node` (element chosen by `u`), its normal and the
-    /// occluder group to ignore.
-    fn point_on(&self, node: &Node, u: f64, rng: &mut Rng) -> (DVec3, DVec3, u32) {
-        let e = &self.mesh.elements[self.tree.element_at(node, u.min(1.0 - 1e-12)) as usize];
-        let group = self.mesh.patches[e.patch.0 as usize].occluder;
-        let c = e.corners();
-        let (u1, u2) = (rng.next_f64(), rng.next_f64());
-        let p = if c.len() == 3 {
-            triangle_point(c[0], c[1], c[2], u1, u2)
-        } else {
-            let a1 = polygon::area(&[c[0], c[1], c[2]]);
-            let a2 = polygon::area(&[c[0], c[2], c[3]]);
-            let split = a1 / (a1 + a2).max(f64::MIN_POSITIVE);
-            if u1 < split {
-                triangle_point(c[0], c[1], c[2], u1 / split.max(1e-300), u2)
-            } else {
-                triangle_point(
-                    c[0],
-                    c[2],
-                    c[3],
-                    (u1 - split) / (1.0 - split).max(1e-300),
-                    u2,
-                )
-            }
-        };
-        (p, e.normal, group)
     }
 }
