@@ -167,6 +167,21 @@ mod tests {
     use super::*;
     use crate::scene::LoadOptions;
 
+    /// The scene of `obj` (faces: floor, block, light; `s.mtl` gives them materials) and its
+    /// floor (face 0) cut by [`split`] at patch area 1.
+    pub(super) fn floor_split(obj: &str) -> (Scene, Vec<Piece>) {
+        let mtl =
+            "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl block\nKd 0.5 0.5 0.5\nnewmtl light\nKe 1 1 1\n";
+        let scene = Scene::from_obj_str("s.obj", obj, &[("s.mtl", mtl)], &LoadOptions::default())
+            .expect("scene");
+        let floor = Piece {
+            poly: scene.faces[0].vertices.clone(),
+            face: 0,
+        };
+        let pieces = split(vec![floor], &scene, 1.0);
+        (scene, pieces)
+    }
+
     /// A square blocker halfway between a point-like light and the floor casts a shadow
     /// twice its size: the floor is cut along exactly that outline (a piece of the
     /// shadow's area, centred under the light), and nothing is cut without a light.
@@ -179,15 +194,7 @@ v -0.01 4 -0.01\nv 0.01 4 -0.01\nv 0.01 4 0.01\nv -0.01 4 0.01
 usemtl floor\nf 1 4 3 2
 usemtl block\nf 5 8 7 6
 usemtl light\nf 9 10 11 12\n";
-        let mtl =
-            "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl block\nKd 0.5 0.5 0.5\nnewmtl light\nKe 1 1 1\n";
-        let scene = Scene::from_obj_str("s.obj", obj, &[("s.mtl", mtl)], &LoadOptions::default())
-            .expect("scene");
-        let floor = Piece {
-            poly: scene.faces[0].vertices.clone(),
-            face: 0,
-        };
-        let pieces = split(vec![floor], &scene, 1.0);
+        let (scene, pieces) = floor_split(obj);
         let total: f64 = pieces.iter().map(|p| polygon::area(&p.poly)).sum();
         assert!((total - 400.0).abs() < 1e-6, "area kept: {total}");
         // The umbra of the tiny light: the blocker (2×2 at height 2) doubled, 4×4 = 16.
@@ -228,8 +235,8 @@ usemtl light\nf 9 10 11 12\n";
 /// sides).
 #[cfg(test)]
 mod edge_vertex_tests {
+    use super::tests::floor_split;
     use super::*;
-    use crate::scene::LoadOptions;
 
     #[test]
     fn the_penumbras_outer_boundary_is_cut_along_edge_vertex_lines() {
@@ -240,15 +247,7 @@ v -0.5 4 -0.5\nv 0.5 4 -0.5\nv 0.5 4 0.5\nv -0.5 4 0.5
 usemtl floor\nf 1 4 3 2
 usemtl block\nf 5 8 7 6
 usemtl light\nf 9 10 11 12\n";
-        let mtl =
-            "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl block\nKd 0.5 0.5 0.5\nnewmtl light\nKe 1 1 1\n";
-        let scene = Scene::from_obj_str("s.obj", obj, &[("s.mtl", mtl)], &LoadOptions::default())
-            .expect("scene");
-        let floor = Piece {
-            poly: scene.faces[0].vertices.clone(),
-            face: 0,
-        };
-        let pieces = split(vec![floor], &scene, 1.0);
+        let (_, pieces) = floor_split(obj);
         // The octagon as half-planes |x| ≤ 2.5, |z| ≤ 2.5, |x| + |z| ≤ 3.
         let depth = |p: DVec3| {
             (p.x.abs() - 2.5)

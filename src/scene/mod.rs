@@ -215,6 +215,20 @@ impl Scene {
         Ok(scene)
     }
 
+    /// A built-in Cornell box variant: the OBJ and the MTL library it names, each (file
+    /// name, text), seen from the published camera.
+    fn cornell_box(
+        name: &str,
+        obj: (&str, &str),
+        mtl: (&str, &str),
+        opts: &LoadOptions,
+    ) -> Result<Scene, SceneError> {
+        let mut s = Scene::from_obj_str(obj.0, obj.1, &[mtl], opts)?;
+        s.name = name.into();
+        s.camera = Some(Camera::cornell());
+        Ok(s)
+    }
+
     /// A built-in scene by name: `cornell`, `furnace` (every face emits 1 and reflects
     /// `opts.rho`, default 0.9) or `cube` (12 triangles, the ceiling emits 1, every face
     /// reflects `opts.rho`, default 0.5) or `tworooms` (two rooms joined by a door left ajar,
@@ -224,39 +238,25 @@ impl Scene {
     /// with the tall block a glossy metal, `Ns` 60).
     pub fn builtin(name: &str, opts: &LoadOptions) -> Result<Scene, SceneError> {
         match name {
-            "cornell" => {
-                let mut s = Scene::from_obj_str(
-                    "cornell.obj",
-                    CORNELL_OBJ,
-                    &[("cornell.mtl", CORNELL_MTL)],
-                    opts,
-                )?;
-                s.name = "cornell".into();
-                s.camera = Some(Camera::cornell());
-                Ok(s)
-            }
-            "cornell-specular" => {
-                let mut s = Scene::from_obj_str(
-                    "cornell-specular.obj",
-                    CORNELL_SPECULAR_OBJ,
-                    &[("cornell-specular.mtl", CORNELL_SPECULAR_MTL)],
-                    opts,
-                )?;
-                s.name = "cornell-specular".into();
-                s.camera = Some(Camera::cornell());
-                Ok(s)
-            }
-            "cornell-glossy" => {
-                let mut s = Scene::from_obj_str(
-                    "cornell-specular.obj",
-                    CORNELL_SPECULAR_OBJ,
-                    &[("cornell-specular.mtl", CORNELL_GLOSSY_MTL)],
-                    opts,
-                )?;
-                s.name = "cornell-glossy".into();
-                s.camera = Some(Camera::cornell());
-                Ok(s)
-            }
+            "cornell" => Self::cornell_box(
+                name,
+                ("cornell.obj", CORNELL_OBJ),
+                ("cornell.mtl", CORNELL_MTL),
+                opts,
+            ),
+            "cornell-specular" => Self::cornell_box(
+                name,
+                ("cornell-specular.obj", CORNELL_SPECULAR_OBJ),
+                ("cornell-specular.mtl", CORNELL_SPECULAR_MTL),
+                opts,
+            ),
+            // The mirror scene's geometry; its OBJ names the library cornell-specular.mtl.
+            "cornell-glossy" => Self::cornell_box(
+                name,
+                ("cornell-specular.obj", CORNELL_SPECULAR_OBJ),
+                ("cornell-specular.mtl", CORNELL_GLOSSY_MTL),
+                opts,
+            ),
             "furnace" => {
                 let rho = opts.rho.unwrap_or(0.9);
                 if !rho.is_finite() || rho < 0.0 {
