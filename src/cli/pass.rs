@@ -3,9 +3,9 @@
 //! user gives (`--time-budget`, whole run, default [`DEFAULT_TIME_BUDGET`]).
 //!
 //! Why these two: on the Cornell box the direct pass (exact direct light per pixel) is the
-//! most accurate (1.39 % against the Mitsuba reference at the default mesh, `docs/BENCHMARKS.md`),
-//! then the vertex pass (1.69 %); the final gather at its default 64 rays is noisier than
-//! either (6.0 %), so `auto` never picks it. The vertex pass costs a fraction of a second at
+//! most accurate (1.39 % against the path-traced reference at the default mesh,
+//! `docs/BENCHMARKS.md`), then the vertex pass (1.69 %); the final gather at its default 64
+//! rays is noisier than either (6.0 %), so `auto` never picks it. The vertex pass costs a fraction of a second at
 //! any size and is the fallback. The direct pass's cost grows with the pixels and the light
 //! faces, so it is measured, not guessed: its per-solution work (indirect vertex radiance,
 //! display BVH, lights) is done once, then a probe renders 1/16 of the pixels (a quarter of
