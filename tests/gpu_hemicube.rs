@@ -260,9 +260,9 @@ fn gpu_hemicube_solves_the_cornell_box_like_the_cpu_hemicube() {
 }
 
 /// OpenGL (here Mesa's llvmpipe through EGL, which `.ci/run` installs) is refused with a
-/// message that says why, instead of rasterising item buffers whose depths `near/D` its
-/// `2z − 1` depth remap rounds to the cleared 0 (every polygon failed the depth test and
-/// the form factors came out zero: `gpu_honours_occluders_like_the_cpu` read 0 for 0.338).
+/// message that says why, instead of rasterising empty item buffers: on it
+/// `gpu_honours_occluders_like_the_cpu` read 0 for 0.338 (most likely its `2z − 1` depth
+/// remap rounds the depths `near/D` to the cleared 0).
 /// Run as a child process with `WGPU_BACKEND=gl`; without any OpenGL adapter the refusal is
 /// "no GPU adapter", which only counts outside CI.
 #[test]

@@ -50,7 +50,7 @@ pub enum GpuError {
     #[error("could not open the GPU device: {0}")]
     Device(String),
     #[error(
-        "the only GPU adapter is OpenGL ('{0}'), which remaps depth to [-1, 1] and loses the precision near 0 that the item buffer's near/D depth needs (polygons vanish): the GPU hemicube needs Vulkan, Metal or DX12 (on Linux without a GPU: apt-get install mesa-vulkan-drivers libvulkan1); the CPU hemicube gives the same form factors"
+        "the only GPU adapter is OpenGL ('{0}'), on which the GPU hemicube's item buffers come out empty (its depth remap to [-1, 1] most likely loses the near/D depths near 0): the GPU hemicube needs Vulkan, Metal or DX12 (on Linux without a GPU: apt-get install mesa-vulkan-drivers libvulkan1); the CPU hemicube gives the same form factors"
     )]
     OpenGl(String),
 }
@@ -95,10 +95,11 @@ struct State {
 
 impl GpuHemicube {
     /// Opens the first adapter wgpu finds (`WGPU_BACKEND` narrows the backends) other than
-    /// OpenGL and builds the pipeline. OpenGL is refused ([`GpuError::OpenGl`]): without
-    /// clip control its depth goes through `2z − 1`, which rounds the item buffer's depths
-    /// `near/D` (1e-9 and less for a near plane of 1e-9) to the cleared 0, so polygons fail
-    /// the depth test and the form factors come out zero.
+    /// OpenGL and builds the pipeline. OpenGL is refused ([`GpuError::OpenGl`]): on Mesa's
+    /// llvmpipe GL the form factors came out zero wherever the near plane was 1e-9 (the
+    /// occluder and Cornell tests) and right where it was about 1e-3 of the scene (the
+    /// item-buffer test): most likely the depth remap `2z − 1` of a GL without clip control
+    /// rounds the depths `near/D` to the cleared 0, so every polygon fails the depth test.
     pub fn new() -> Result<Self, GpuError> {
         let from_env = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
         let allowed = from_env.backends;
