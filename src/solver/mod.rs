@@ -356,6 +356,18 @@ pub trait Solver: Send {
     /// The problem and the cached form-factor rows, for a solver of another kind
     /// ([`SolverKind::build_with_rows`]).
     fn into_parts(self: Box<Self>) -> (Problem, RowCache);
+    /// This solution carried onto `problem`, the same scene on a refined mesh, so that the
+    /// solve goes on instead of starting again (shooting:
+    /// [`ProgressiveSolver::carry_to`]); `problem` back where this solver cannot, to be
+    /// solved from dark.
+    fn carry_to(
+        &mut self,
+        problem: Problem,
+        cancel: &AtomicBool,
+    ) -> Result<Box<dyn Solver>, Box<Problem>> {
+        let _ = cancel;
+        Err(Box::new(problem))
+    }
 }
 
 /// One row of a generic run's log.

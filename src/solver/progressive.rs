@@ -40,6 +40,7 @@ use super::problem::Problem;
 use super::rows::RowCache;
 use super::{ShotRecord, SolverConfig, SolverError, StopCriteria, channel_sum};
 
+mod carry;
 mod display;
 mod solver_impl;
 

@@ -72,6 +72,13 @@ impl Solver for ProgressiveSolver {
     fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
         (self.problem, self.rows)
     }
+    fn carry_to(
+        &mut self,
+        problem: Problem,
+        cancel: &AtomicBool,
+    ) -> Result<Box<dyn Solver>, Box<Problem>> {
+        ProgressiveSolver::carry_to(self, problem, cancel).map(|s| Box::new(s) as Box<dyn Solver>)
+    }
     fn report(&self) -> String {
         format!(
             "{} shots{}",
