@@ -152,7 +152,6 @@ fn the_light_is_re_aimed_through_the_finer_rows() {
 fn a_round_trip_through_a_finer_mesh_gives_the_solution_back() {
     let scene = cornell();
     let mut old = solved(&scene, &[], 2e-2);
-    let never = AtomicBool::new(false);
     let levels = floor_levels(old.problem(), 1);
     let mut fine = carry(&mut old, meshed(&scene, &levels));
     let back = carry(&mut fine, meshed(&scene, &[]));
