@@ -11,9 +11,7 @@ use anyhow::{Context, Result};
 use crate::formfactor::FormFactorMethod;
 use crate::render::{self, Image, RenderSettings};
 use crate::scene::{LoadOptions, Scene};
-use crate::solver::{
-    Problem, ProgressiveSolver, SolverConfig, SolverKind, StopCriteria, run_solver,
-};
+use crate::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
 
 use super::bench_images::{Recorder, first_time_below, render_elements};
 use super::plot::{self, Plot, Series};
@@ -99,17 +97,16 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
      -> Result<((f64, f64), (f64, f64))> {
         eprintln!("cornell image: {label}…");
         let start = Instant::now();
-        let problem = super::bench_images::meshed(&scene, config, adaptive)?;
-        let mut s = ProgressiveSolver::from_problem(problem);
+        let mut s = super::bench_images::meshed(&scene, config, adaptive)?;
         let stop = StopCriteria {
             unshot: 1e-4,
             // The finest meshes need longer than one solver's share.
             max_seconds: Some(4.0 * seconds),
             ..Default::default()
         };
-        s.run(&stop, &never, &mut |_| {});
+        run_solver(s.as_mut(), &stop, &never, &mut |_, _| {});
         let solved = start.elapsed().as_secs_f64();
-        let bvh = render::display_bvh(&scene, s.mesh());
+        let bvh = render::display_bvh(&scene, &s.problem().mesh);
         let e = render::relative_rms(
             &render_elements(s.problem(), &s.element_radiance(true), &bvh, 16),
             &reference,
@@ -130,16 +127,16 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
             render::direct::render_solution(s.problem(), &s.element_radiance(true), &settings);
         let e_direct = render::relative_rms(&direct, &reference, &mask)?;
         let t_direct = solved + t_direct.elapsed().as_secs_f64();
-        let n = s.mesh().elements.len();
+        let n = s.problem().mesh.elements.len();
         rows.push((
             format!("{group}, direct pass"),
             label.clone(),
             n,
-            s.shots(),
+            s.steps(),
             t_direct,
             e_direct,
         ));
-        rows.push((group.into(), label, n, s.shots(), t, e));
+        rows.push((group.into(), label, n, s.steps(), t, e));
         Ok(((t, e), (t_direct, e_direct)))
     };
     let (mut density, mut density_direct) = (Vec::new(), Vec::new());

@@ -24,7 +24,7 @@ use anyhow::{Context, Result};
 use crate::render::{self, Image, RenderSettings, SolutionView};
 use crate::scene::{LoadOptions, Rgb, Scene};
 use crate::solver::{
-    Problem, ProgressiveSolver, SolverConfig, SolverKind, StopCriteria, run_solver,
+    Problem, ProgressiveSolver, Solver, SolverConfig, SolverKind, StopCriteria, run_solver,
 };
 
 use super::plot::{self, Plot, Series};
@@ -80,9 +80,14 @@ impl Recorder<'_> {
     }
 }
 
-/// The Cornell benchmarks' problem: `scene` meshed by `config`, then refined adaptively
-/// (`render --adaptive TOL`: two passes, each solved to 1e-4) when `adaptive` is given.
-pub fn meshed(scene: &Scene, config: SolverConfig, adaptive: Option<f64>) -> Result<Problem> {
+/// The Cornell benchmarks' solver: `scene` meshed by `config`, then refined adaptively
+/// (`render --adaptive TOL`: two passes, each solved to 1e-3, the solution carried onto the
+/// refined mesh) when `adaptive` is given.
+pub fn meshed(
+    scene: &Scene,
+    config: SolverConfig,
+    adaptive: Option<f64>,
+) -> Result<Box<dyn Solver>> {
     let problem = Problem::new(scene.clone(), config)?;
     Ok(match adaptive {
         Some(tolerance) => crate::solver::refine::refine_adaptively(
@@ -92,7 +97,7 @@ pub fn meshed(scene: &Scene, config: SolverConfig, adaptive: Option<f64>) -> Res
             2,
             1e-4,
         )?,
-        None => problem,
+        None => SolverKind::Shooting.build(problem)?,
     })
 }
 

@@ -13,7 +13,7 @@ use anyhow::{Context, Result};
 
 use crate::render::{self, Image, RenderSettings};
 use crate::scene::{LoadOptions, Scene};
-use crate::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+use crate::solver::{SolverConfig, StopCriteria, run_solver};
 
 use super::bench_images::render_elements;
 use super::plot::{self, Plot, Series};
@@ -50,12 +50,11 @@ pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
      -> Result<Row> {
         eprintln!("meshing: {kind} {label}…");
         let start = Instant::now();
-        let problem = super::bench_images::meshed(&scene, config, adaptive)?;
-        let mut s = ProgressiveSolver::from_problem(problem);
-        s.run(&StopCriteria::default(), &never, &mut |_| {});
+        let mut s = super::bench_images::meshed(&scene, config, adaptive)?;
+        run_solver(s.as_mut(), &StopCriteria::default(), &never, &mut |_, _| {});
         let solved = start.elapsed().as_secs_f64();
         let radiance = s.element_radiance(true);
-        let bvh = render::display_bvh(&scene, s.mesh());
+        let bvh = render::display_bvh(&scene, &s.problem().mesh);
         let image = render_elements(s.problem(), &radiance, &bvh, settings.spp);
         let vertex = (
             start.elapsed().as_secs_f64(),
@@ -70,7 +69,7 @@ pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
         Ok(Row {
             kind,
             label,
-            elements: s.mesh().elements.len(),
+            elements: s.problem().mesh.elements.len(),
             vertex,
             direct,
         })

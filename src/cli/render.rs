@@ -299,17 +299,17 @@ fn render(args: &RenderArgs) -> Result<()> {
     };
     let adapter = config.raster.as_ref().map(|r| r.describe());
     let solve_start = Instant::now();
-    let mut problem = Problem::new(scene, config)?;
-    if let Some(tolerance) = args.adaptive {
-        problem = crate::solver::refine::refine_adaptively(
+    let problem = Problem::new(scene, config)?;
+    let mut solver = match args.adaptive {
+        Some(tolerance) => crate::solver::refine::refine_adaptively(
             problem,
             kind,
             tolerance,
             args.adaptive_passes,
             args.unshot,
-        )?;
-    }
-    let mut solver = kind.build(problem)?;
+        )?,
+        None => kind.build(problem)?,
+    };
     if !args.quiet && !args.json {
         let m = &solver.problem().mesh;
         eprintln!(

@@ -1,13 +1,15 @@
 //! Adaptive meshing as a solve: solve, mark where the radiance varies across elements
-//! ([`crate::mesh::adaptive`]), rebuild the mesh refined there, and again.
+//! ([`crate::mesh::adaptive`]), rebuild the mesh refined there, carry the solution onto it
+//! (shooting: [`Solver::carry_to`], nothing gained or lost) and go on.
 
 use std::sync::atomic::AtomicBool;
 
-use super::{Problem, SolverError, SolverKind, StopCriteria, run_solver};
+use super::{Problem, Solver, SolverError, SolverKind, StopCriteria, run_solver};
 
-/// `passes` rounds of solve, mark, refine (see [`crate::mesh::adaptive`]); returns the
-/// problem on the last refined mesh (to be solved from dark), or the first one unchanged
-/// when nothing needs refining. Refinement stops before a mesh of more than
+/// `passes` rounds of solve (to `unshot`, at most 1e-3), mark, refine (see
+/// [`crate::mesh::adaptive`]); returns the solver on the last mesh, with the solution
+/// carried onto it where the solver can ([`Solver::carry_to`]) and from dark where it
+/// cannot: run it on to the stop wanted. Refinement stops before a mesh of more than
 /// [`crate::mesh::MAX_ELEMENTS`] elements (each level multiplies a patch's by about four).
 pub fn refine_adaptively(
     problem: Problem,
@@ -15,7 +17,7 @@ pub fn refine_adaptively(
     tolerance: f64,
     passes: u8,
     unshot: f64,
-) -> Result<Problem, SolverError> {
+) -> Result<Box<dyn Solver>, SolverError> {
     refine_within(
         problem,
         kind,
@@ -28,32 +30,26 @@ pub fn refine_adaptively(
 
 /// [`refine_adaptively`] with the element limit given.
 fn refine_within(
-    mut problem: Problem,
+    problem: Problem,
     kind: SolverKind,
     tolerance: f64,
     passes: u8,
     unshot: f64,
     max_elements: usize,
-) -> Result<Problem, SolverError> {
+) -> Result<Box<dyn Solver>, SolverError> {
     let mut levels: Vec<u8> = Vec::new();
     let never = AtomicBool::new(false);
+    let mut solver = kind.build(problem)?;
     for _ in 0..passes {
-        let mut solver = kind.build(problem)?;
         let stop = StopCriteria {
             unshot: unshot.max(1e-3),
             ..Default::default()
         };
         run_solver(solver.as_mut(), &stop, &never, &mut |_, _| {});
         let radiance = solver.element_radiance(false);
-        let next = crate::mesh::adaptive::refine_levels(
-            &solver.problem().mesh,
-            &radiance,
-            &levels,
-            tolerance,
-            passes,
-        );
-        let (solved, _) = solver.into_parts();
-        let mesh = &solved.mesh;
+        let mesh = &solver.problem().mesh;
+        let next =
+            crate::mesh::adaptive::refine_levels(mesh, &radiance, &levels, tolerance, passes);
         let level = |v: &[u8], b: u32| i32::from(v.get(b as usize).copied().unwrap_or(0));
         let estimate: f64 = mesh
             .patches
@@ -65,18 +61,23 @@ fn refine_within(
             })
             .sum();
         if next == levels || next.iter().all(|&l| l == 0) || estimate > max_elements as f64 {
-            return Ok(solved);
+            return Ok(solver);
         }
         levels = next;
+        let solved = solver.problem();
         let mesh = crate::mesh::Mesh::build_refined(
             &solved.scene,
             solved.mesh.element_size,
             solved.mesh.patch_size,
             &levels,
         )?;
-        problem = Problem::with_mesh(solved.scene, solved.config, mesh)?;
+        let refined = Problem::with_mesh(solved.scene.clone(), solved.config.clone(), mesh)?;
+        solver = match solver.carry_to(refined, &never) {
+            Ok(carried) => carried,
+            Err(refined) => kind.build(*refined)?,
+        };
     }
-    Ok(problem)
+    Ok(solver)
 }
 
 #[cfg(test)]
@@ -98,13 +99,27 @@ mod tests {
     #[test]
     fn refinement_adds_elements_and_stops_at_the_element_limit() {
         let first = cornell().mesh.elements.len();
+        let patches = cornell().mesh.patches.len();
         let refined =
             refine_adaptively(cornell(), SolverKind::Shooting, 0.1, 1, 1e-3).expect("refined");
-        assert!(refined.mesh.elements.len() > first, "nothing refined");
-        assert!(refined.mesh.patches.len() > cornell().mesh.patches.len());
+        assert!(
+            refined.problem().mesh.elements.len() > first,
+            "nothing refined"
+        );
+        assert!(refined.problem().mesh.patches.len() > patches);
+        // Carried, not restarted: the light's shots are already on the refined mesh.
+        assert!(refined.steps() > 0 && refined.residual() < 1.0);
         // A limit below what one level would make: the first mesh comes back.
         let limited = refine_within(cornell(), SolverKind::Shooting, 0.1, 1, 1e-3, first + 1)
             .expect("limited");
-        assert_eq!(limited.mesh.elements.len(), first);
+        assert_eq!(limited.problem().mesh.elements.len(), first);
+    }
+
+    #[test]
+    fn a_solver_that_cannot_carry_starts_the_refined_mesh_from_dark() {
+        let refined =
+            refine_adaptively(cornell(), SolverKind::Jacobi, 0.1, 1, 1e-3).expect("refined");
+        assert!(refined.problem().mesh.elements.len() > cornell().mesh.elements.len());
+        assert_eq!(refined.steps(), 0);
     }
 }

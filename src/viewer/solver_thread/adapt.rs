@@ -2,13 +2,14 @@
 //! the solver panel): each time the solve has shot all but [`ADAPT_UNSHOT`] of the
 //! emitted power, the elements whose radiance varies across them by more than the
 //! tolerance are refined one level (`mesh::adaptive`, Cohen et al. 1986: their patch
-//! cut into four, elements halved), and the solve restarts on the refined mesh, so the
-//! mesh grows on screen (wireframe) until nothing exceeds the tolerance, [`MAX_LEVEL`]
+//! cut into four, elements halved), and the solution is carried onto the refined mesh
+//! (`Solver::carry_to`; solvers that cannot restart from dark there), so the mesh grows
+//! on screen (wireframe) until nothing exceeds the tolerance, [`MAX_LEVEL`]
 //! levels are reached, or the mesh would pass `mesh::MAX_ELEMENTS`.
 
 use crate::mesh::Mesh;
 use crate::mesh::adaptive::refine_levels;
-use crate::solver::Problem;
+use crate::solver::{Problem, RowCache};
 
 use super::Event;
 use super::worker::Worker;
@@ -90,14 +91,22 @@ impl Worker {
                 return;
             }
         };
-        let Some(solver) = self.solver.take() else {
+        let Some(mut solver) = self.solver.take() else {
             return;
         };
-        let (problem, mut rows) = solver.into_parts();
-        match Problem::with_mesh(problem.scene, problem.config, mesh) {
+        let solved = solver.problem();
+        match Problem::with_mesh(solved.scene.clone(), solved.config.clone(), mesh) {
             Ok(p) => {
-                rows.clear();
-                self.build(p, rows);
+                // Carried where the solver can (shooting: the light already shot and
+                // delivered is kept, the lights re-aimed through the finer rows); else
+                // from dark.
+                match solver.carry_to(p, &self.cancel) {
+                    Ok(carried) => {
+                        self.solver = Some(carried);
+                        self.restart_clock();
+                    }
+                    Err(p) => self.build(*p, RowCache::default()),
+                }
                 self.new_geometry();
                 if let Some(a) = self.adapting.as_mut() {
                     a.levels = next;
@@ -107,8 +116,10 @@ impl Worker {
                 self.exhausted = false;
             }
             Err(e) => {
+                // The solve goes on, on the mesh it had.
+                self.solver = Some(solver);
                 self.adapting = None;
-                self.send_event(Event::Failed(format!("adaptive refinement: {e}")));
+                self.send_event(Event::Error(format!("adaptive refinement: {e}")));
             }
         }
     }

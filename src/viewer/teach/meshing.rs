@@ -17,7 +17,7 @@ use std::thread::JoinHandle;
 use std::time::Instant;
 
 use crate::scene::{Camera, Rgb, Scene};
-use crate::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
+use crate::solver::{Problem, Solver, SolverConfig, SolverKind, StopCriteria, run_solver};
 
 use super::item_image::ItemImage;
 
@@ -134,14 +134,11 @@ impl Drop for MeshJob {
 }
 
 fn side(
-    problem: Problem,
+    mut solver: Box<dyn Solver>,
     camera: &Camera,
     start: Instant,
     cancel: &AtomicBool,
 ) -> Result<MeshSide, String> {
-    let mut solver = SolverKind::Shooting
-        .build(problem)
-        .map_err(|e| e.to_string())?;
     let stop = StopCriteria {
         unshot: UNSHOT,
         ..Default::default()
@@ -181,7 +178,10 @@ fn compute(
     let problem = Problem::new(scene.clone(), config.clone()).map_err(|e| e.to_string())?;
     let h = problem.mesh.element_size;
     let patch = problem.mesh.patch_size;
-    let uniform = side(problem, camera, start, cancel)?;
+    let uniform = SolverKind::Shooting
+        .build(problem)
+        .map_err(|e| e.to_string())?;
+    let uniform = side(uniform, camera, start, cancel)?;
     stage.store(1, Ordering::Relaxed);
     let start = Instant::now();
     let coarse = SolverConfig {
