@@ -1,7 +1,8 @@
 //! Adaptive refinement in the viewer's solver thread (`Command::Adapt`, `view --adaptive`),
 //! without a window: the mesh grows pass by pass (each published with its own geometry),
-//! only where the radiance varies (fewer elements than refining everywhere), the solve
-//! then converges on the last mesh, and the snapshot says converged only then.
+//! only where the radiance varies (fewer elements than refining everywhere), the solution
+//! is carried onto each refined mesh (not solved again from dark), the solve then
+//! converges on the last mesh, and the snapshot says converged only then.
 
 use std::time::{Duration, Instant};
 
@@ -37,6 +38,7 @@ fn the_mesh_grows_where_the_light_varies_then_converges() {
     let start_elements = first.stats.elements;
     h.send(Command::Adapt(Some(0.25))).expect("queue");
     let mut sizes = vec![start_elements];
+    let mut steps = first.stats.steps;
     let done = loop {
         assert!(
             Instant::now() < deadline,
@@ -45,7 +47,15 @@ fn the_mesh_grows_where_the_light_varies_then_converges() {
         if let Some(s) = h.take_snapshot() {
             if sizes.last() != Some(&s.stats.elements) {
                 sizes.push(s.stats.elements);
+                // Carried onto the refined mesh, not solved again from dark: the shots
+                // go on counting.
+                assert!(
+                    s.stats.steps >= steps,
+                    "{} shots after refining, {steps} before",
+                    s.stats.steps
+                );
             }
+            steps = s.stats.steps;
             if s.stats.converged {
                 break s;
             }
