@@ -100,10 +100,15 @@ impl Worker {
                 // Carried where the solver can (shooting: the light already shot and
                 // delivered is kept, the lights re-aimed through the finer rows); else
                 // from dark.
+                let start = std::time::Instant::now();
                 match solver.carry_to(p, &self.cancel) {
                     Ok(carried) => {
+                        // The same solve going on: its clock (which counts the carry's
+                        // rows) and history go on too.
+                        self.elapsed += start.elapsed();
                         self.solver = Some(carried);
-                        self.restart_clock();
+                        self.step_detail = None;
+                        self.dirty = true;
                     }
                     Err(p) => self.build(*p, RowCache::default()),
                 }
