@@ -13,7 +13,6 @@
 
 use std::io::Write;
 use std::path::Path;
-use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -21,7 +20,7 @@ use anyhow::{Context, Result};
 use crate::render::pathtrace::PathTracer;
 use crate::render::{self, Image, RenderSettings};
 use crate::scene::{LoadOptions, Scene};
-use crate::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
+use crate::solver::{Problem, SolverConfig, SolverKind, solve_to};
 
 /// Samples per pixel of the hybrid's renders (what `render` does by default).
 const HYBRID_SPP: u32 = 16;
@@ -145,16 +144,7 @@ fn hybrid_rows(
     let start = Instant::now();
     let mut solver =
         SolverKind::Shooting.build(Problem::new(scene.clone(), SolverConfig::default())?)?;
-    let stop = StopCriteria {
-        unshot: 1e-4,
-        ..Default::default()
-    };
-    run_solver(
-        solver.as_mut(),
-        &stop,
-        &AtomicBool::new(false),
-        &mut |_, _| {},
-    );
+    solve_to(solver.as_mut(), 1e-4);
     let solved = start.elapsed().as_secs_f64();
     let radiance = solver.element_radiance(true);
     let problem = solver.problem();

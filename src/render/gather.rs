@@ -107,11 +107,10 @@ fn shade(
 
 #[cfg(test)]
 mod tests {
-    use std::sync::atomic::AtomicBool;
 
     use super::*;
     use crate::scene::{LoadOptions, Scene};
-    use crate::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
+    use crate::solver::{Problem, SolverConfig, SolverKind, solve_to};
 
     /// In a furnace (a closed box, every face emitting 1 with reflectance ρ) every point's
     /// radiance is `1/(1 − ρ)`: the direct term is `E` (the whole box), every gather ray
@@ -131,16 +130,7 @@ mod tests {
         let camera = crate::render::view::default_camera(&scene);
         let problem = Problem::new(scene, SolverConfig::default()).expect("problem");
         let mut solver = SolverKind::Shooting.build(problem).expect("solver");
-        let stop = StopCriteria {
-            unshot: 1e-6,
-            ..Default::default()
-        };
-        run_solver(
-            solver.as_mut(),
-            &stop,
-            &AtomicBool::new(false),
-            &mut |_, _| {},
-        );
+        solve_to(solver.as_mut(), 1e-6);
         let settings = RenderSettings {
             width: 12,
             height: 12,

@@ -378,6 +378,16 @@ pub struct StepRecord {
     pub residual: f64,
 }
 
+/// [`run_solver`] to a residual of `unshot`, uncancelled and unwatched: for batch runs,
+/// benches and tests.
+pub fn solve_to(solver: &mut dyn Solver, unshot: f64) {
+    let stop = StopCriteria {
+        unshot,
+        ..Default::default()
+    };
+    run_solver(solver, &stop, &AtomicBool::new(false), &mut |_, _| {});
+}
+
 /// Steps `solver` until `stop` is met (`unshot` is the residual target; `max_shots` counts
 /// steps; `tolerance` is checked after 10 % more steps each time, so a run may overshoot
 /// it by that many); calls `on_step` after each step.

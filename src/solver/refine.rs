@@ -4,7 +4,7 @@
 
 use std::sync::atomic::AtomicBool;
 
-use super::{Problem, Solver, SolverError, SolverKind, StopCriteria, run_solver};
+use super::{Problem, Solver, SolverError, SolverKind, solve_to};
 
 /// `passes` rounds of solve (to `unshot`, at most 1e-3), mark, refine (see
 /// [`crate::mesh::adaptive`]); returns the solver on the last mesh, with the solution
@@ -41,11 +41,7 @@ fn refine_within(
     let never = AtomicBool::new(false);
     let mut solver = kind.build(problem)?;
     for _ in 0..passes {
-        let stop = StopCriteria {
-            unshot: unshot.max(1e-3),
-            ..Default::default()
-        };
-        run_solver(solver.as_mut(), &stop, &never, &mut |_, _| {});
+        solve_to(solver.as_mut(), unshot.max(1e-3));
         let radiance = solver.element_radiance(false);
         let mesh = &solver.problem().mesh;
         let next =

@@ -1,14 +1,12 @@
 //! Tests of the specular eye pass against exact cases and the path tracer.
 
-use std::sync::atomic::AtomicBool;
-
 use glam::DVec3;
 
 use super::*;
 use crate::render::pathtrace::PathTracer;
 use crate::render::{Camera, direct, display_bvh};
 use crate::scene::{LoadOptions, Scene};
-use crate::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
+use crate::solver::{Problem, SolverConfig, SolverKind, solve_to};
 
 /// OBJ faces of the box `lo`–`hi` seen from outside, its vertices numbered from `first`.
 fn cuboid(lo: DVec3, hi: DVec3, first: usize) -> String {
@@ -49,16 +47,7 @@ fn solve(scene: Scene, element_size: f64) -> (Problem, Vec<Rgb>) {
     let mut solver = SolverKind::Shooting
         .build(Problem::new(scene, config).expect("problem"))
         .expect("solver");
-    let stop = StopCriteria {
-        unshot: 1e-6,
-        ..Default::default()
-    };
-    run_solver(
-        solver.as_mut(),
-        &stop,
-        &AtomicBool::new(false),
-        &mut |_, _| {},
-    );
+    solve_to(solver.as_mut(), 1e-6);
     let radiance = solver.element_radiance(false);
     (solver.into_parts().0, radiance)
 }
@@ -66,6 +55,23 @@ fn solve(scene: Scene, element_size: f64) -> (Problem, Vec<Rgb>) {
 /// The vertex pass (`render --pass vertex`) of a solution.
 fn vertex_image(problem: &Problem, radiance: &[Rgb], settings: &RenderSettings) -> Image {
     crate::render::Pass::Vertex.render(problem, radiance, settings, 0)
+}
+
+/// `side`² pixels, 4 spp, from the middle of the unit gap between the wall (z = 0) and the
+/// mirror (z = 1), looking at the mirror with a 30° field: every ray meets the mirror.
+fn facing_the_mirror(side: u32) -> RenderSettings {
+    RenderSettings {
+        width: side,
+        height: side,
+        spp: 4,
+        camera: Camera {
+            eye: DVec3::new(0.5, 0.5, 0.5),
+            target: DVec3::new(0.5, 0.5, 1.0),
+            vfov_deg: 30.0,
+        },
+        seed: 5,
+        edge_spp: 0,
+    }
 }
 
 /// An emitting wall (z = 0, facing +z, `Ke` = 2) and a mirror facing it (z = 1), seen
@@ -79,19 +85,7 @@ fn vertex_image(problem: &Problem, radiance: &[Rgb], settings: &RenderSettings) 
 fn a_mirror_shows_ks_times_what_it_reflects() {
     let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl wall\nf 1 2 3 4\n\
         v 0 0 1\nv 0 1 1\nv 1 1 1\nv 1 0 1\nusemtl mirror\nf 5 6 7 8\n";
-    let camera = Camera {
-        eye: DVec3::new(0.5, 0.5, 0.5),
-        target: DVec3::new(0.5, 0.5, 1.0),
-        vfov_deg: 30.0,
-    };
-    let settings = RenderSettings {
-        width: 12,
-        height: 12,
-        spp: 4,
-        camera,
-        seed: 5,
-        edge_spp: 0,
-    };
+    let settings = facing_the_mirror(12);
     for kd in [0.0, 0.2] {
         let mtl = format!(
             "newmtl wall\nKd 0 0 0\nKe 2 2 2\nnewmtl mirror\nKd {kd} {kd} {kd}\nKs 0.7 0.7 0.7\nillum 3\n"
@@ -110,7 +104,8 @@ fn a_mirror_shows_ks_times_what_it_reflects() {
                         x as f64 + (k % 8) as f64 / 8.0,
                         y as f64 + (k / 8) as f64 / 8.0,
                     );
-                    let ray = Ray::new(camera.eye, camera.ray_dir(sx, sy, 12, 12));
+                    let ray =
+                        Ray::new(settings.camera.eye, settings.camera.ray_dir(sx, sy, 12, 12));
                     let l = pt.radiance(&ray, &mut rng).x;
                     sum += l;
                     sum2 += l * l;
@@ -168,19 +163,7 @@ fn a_glossy_mirror_shows_ks_times_a_wall_filling_its_lobe() {
         scene.materials[1].surface,
         Surface::Glossy { exponent, .. } if exponent == 20.0
     ));
-    let camera = Camera {
-        eye: DVec3::new(0.5, 0.5, 0.5),
-        target: DVec3::new(0.5, 0.5, 1.0),
-        vfov_deg: 30.0,
-    };
-    let settings = RenderSettings {
-        width: 8,
-        height: 8,
-        spp: 4,
-        camera,
-        seed: 5,
-        edge_spp: 0,
-    };
+    let settings = facing_the_mirror(8);
     let (problem, radiance) = solve(scene.clone(), 4.0);
     let hybrid = direct::render_solution(&problem, &radiance, &settings);
     for p in &hybrid.pixels {
@@ -194,7 +177,7 @@ fn a_glossy_mirror_shows_ks_times_a_wall_filling_its_lobe() {
     let mut rng = Rng::new(9, 1);
     for k in 0..256 {
         let (sx, sy) = ((k % 16) as f64 / 2.0, (k / 16) as f64 / 2.0);
-        let ray = Ray::new(camera.eye, camera.ray_dir(sx, sy, 8, 8));
+        let ray = Ray::new(settings.camera.eye, settings.camera.ray_dir(sx, sy, 8, 8));
         let l = pt.radiance(&ray, &mut rng).x;
         assert!((l - 1.4).abs() < 1e-9, "path tracer {l} against 1.4");
     }
