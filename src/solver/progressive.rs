@@ -91,6 +91,9 @@ pub struct ProgressiveSolver {
     incident: Vec<Rgb>,
     /// Per patch, radiance units.
     unshot: Vec<Rgb>,
+    /// Per patch, the power its shots have delivered, `Σ_j ΔH_j A_j` over them (what a
+    /// refinement keeps, [`carry`]).
+    delivered: Vec<Rgb>,
     rows: RowCache,
     /// Built on first display with the regional ambient term.
     regional: OnceLock<RegionalAmbient>,
@@ -119,6 +122,7 @@ impl ProgressiveSolver {
             element_rho: Vec::new(),
             incident: Vec::new(),
             unshot: Vec::new(),
+            delivered: Vec::new(),
             rows,
             regional: OnceLock::new(),
             shots: 0,
@@ -139,6 +143,7 @@ impl ProgressiveSolver {
         self.element_rho = p.element_reflectance();
         self.radiosity = p.element_emission();
         self.unshot = p.patch_emission();
+        self.delivered = vec![Rgb::ZERO; p.mesh.patches.len()];
         self.shots = 0;
         self.last_shooter = None;
         self.total_area = p.mesh.patches.iter().map(|q| q.area).sum();
@@ -280,11 +285,11 @@ impl ProgressiveSolver {
             incident = rest_h;
             jobs.push((p.elements.start as usize, b, h));
         }
-        let gained: Vec<Rgb> = jobs
+        let gained: Vec<(Rgb, Rgb)> = jobs
             .into_par_iter()
             .with_min_len(32)
             .map(|(first, b, h)| {
-                let mut gained = Rgb::ZERO;
+                let (mut gained, mut reached) = (Rgb::ZERO, Rgb::ZERO);
                 for (k, (b, h)) in b.iter_mut().zip(h.iter_mut()).enumerate() {
                     let j = first + k;
                     let f = row[j] as f64;
@@ -295,13 +300,16 @@ impl ProgressiveSolver {
                     *h += dh;
                     let db = rho[j] * dh;
                     *b += db;
-                    gained += db * mesh.elements[j].area;
+                    let area = mesh.elements[j].area;
+                    gained += db * area;
+                    reached += dh * area;
                 }
-                gained
+                (gained, reached)
             })
             .collect();
-        for ((u, g), p) in self.unshot.iter_mut().zip(&gained).zip(&mesh.patches) {
+        for ((u, (g, r)), p) in self.unshot.iter_mut().zip(&gained).zip(&mesh.patches) {
             *u += *g / p.area;
+            self.delivered[shooter.0 as usize] += *r;
         }
         debug_assert!(self.radiosity.iter().all(|b| b.is_finite()));
         self.shots += 1;

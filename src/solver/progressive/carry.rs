@@ -24,7 +24,8 @@
 //! before and after, to round-off: none gained or lost. The
 //! one exception: a patch whose new rows reach nothing where its old ones reached
 //! something (its light is dropped). Cost: a row per shooting patch on the new mesh, which
-//! a solve from dark computes too; rows are held one base patch at a time. Declined (the
+//! a solve from dark computes too (rows are held one base patch at a time); what the old
+//! rows delivered is kept per patch while shooting, so they are not needed again. Declined (the
 //! caller solves from dark) when the two meshes do not share their base patches, or on
 //! cancel.
 
@@ -61,6 +62,7 @@ impl ProgressiveSolver {
                 next.incident = state.incident;
                 next.radiosity = state.radiosity;
                 next.unshot = state.unshot;
+                next.delivered = state.delivered;
                 next.shots = self.shots;
                 debug_assert!(next.radiosity.iter().all(|b| b.is_finite()));
                 debug_assert!(next.unshot.iter().all(|u| u.is_finite()));
@@ -103,11 +105,8 @@ impl ProgressiveSolver {
 
         // The power each base patch's shots delivered on the old mesh.
         let mut delivered_old = vec![Rgb::ZERO; bases];
-        for (i, s) in old_shot.iter().enumerate() {
-            if channel_sum(*s) > 0.0 {
-                let row = self.rows.row(&self.problem, PatchId(i as u32), cancel)?;
-                delivered_old[old.base_patch[i] as usize] += *s * delivered(old, &row);
-            }
+        for (d, &b) in self.delivered.iter().zip(&old.base_patch) {
+            delivered_old[b as usize] += *d;
         }
 
         // Every shot again through the new rows, a base patch at a time (its rows held
@@ -120,17 +119,21 @@ impl ProgressiveSolver {
         }
         let mut rows = RowCache::default();
         let mut incident = vec![Rgb::ZERO; mesh.elements.len()];
+        let mut delivered_new = vec![Rgb::ZERO; mesh.patches.len()];
         for (b, patches) in by_base.iter().enumerate() {
             let mut held = Vec::with_capacity(patches.len());
-            let mut delivered_new = Rgb::ZERO;
             for &p in patches {
                 let row = rows.row(new, PatchId(p as u32), cancel)?;
-                delivered_new += shot[p] * delivered(mesh, &row);
+                delivered_new[p] = shot[p] * delivered(mesh, &row);
                 held.push(row);
             }
-            let scale = scale(delivered_old[b], delivered_new);
+            let now = patches
+                .iter()
+                .fold(Rgb::ZERO, |sum, &p| sum + delivered_new[p]);
+            let scale = scale(delivered_old[b], now);
             for (&p, row) in patches.iter().zip(&held) {
                 shot[p] *= scale;
+                delivered_new[p] *= scale;
                 let s = shot[p];
                 for (h, f) in incident.iter_mut().zip(row.iter()) {
                     *h += s * f64::from(*f);
@@ -155,6 +158,7 @@ impl ProgressiveSolver {
             incident,
             radiosity,
             unshot,
+            delivered: delivered_new,
         })
     }
 }
@@ -176,6 +180,7 @@ struct Carried {
     incident: Vec<Rgb>,
     radiosity: Vec<Rgb>,
     unshot: Vec<Rgb>,
+    delivered: Vec<Rgb>,
 }
 
 /// The power a unit shot radiance of the row's patch `i` delivers, `Σ_j F_ji A_j`.

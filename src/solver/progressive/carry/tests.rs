@@ -103,6 +103,18 @@ fn refining_keeps_the_light_delivered() {
     for (b, (x, y)) in before.iter().zip(&after).enumerate() {
         assert!(close(*x, *y, scale), "base {b} delivered {x}, now {y}");
     }
+    // The solvers' own account of it, kept shot by shot, says the same.
+    for s in [&old, &new] {
+        let kept = totals(
+            &s.delivered,
+            &vec![1.0; s.delivered.len()],
+            &s.mesh().base_patch,
+            bases,
+        );
+        for (b, (x, y)) in kept.iter().zip(&before).enumerate() {
+            assert!(close(*x, *y, scale), "base {b}: kept {x}, rows say {y}");
+        }
+    }
     // The unshot radiance is gathered minus shot again.
     let gathered = patch_mean(new.mesh(), new.radiosity());
     for ((u, b), s) in new.unshot().iter().zip(&gathered).zip(new.shot()) {
