@@ -120,7 +120,14 @@ impl ProgressiveSolver {
         let mut rows = RowCache::default();
         let mut incident = vec![Rgb::ZERO; mesh.elements.len()];
         let mut delivered_new = vec![Rgb::ZERO; mesh.patches.len()];
-        for (b, patches) in by_base.iter().enumerate() {
+        // Dimmest first: where the rows pass the cache's budget, the least recently used go,
+        // and the brightest shooters, which shoot again soonest, stay.
+        let mut order: Vec<usize> = (0..bases).collect();
+        order.sort_by(|&a, &b| {
+            channel_sum(delivered_old[a]).total_cmp(&channel_sum(delivered_old[b]))
+        });
+        for b in order {
+            let patches = &by_base[b];
             let mut held = Vec::with_capacity(patches.len());
             for &p in patches {
                 let row = rows.row(new, PatchId(p as u32), cancel)?;
