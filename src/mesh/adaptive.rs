@@ -11,11 +11,20 @@
 //! tolerance is refined one level more: cut into four patches, each with elements half the
 //! size ([`Mesh::build_refined`]); the patch size matters as much as the element size,
 //! since a patch shoots its average unshot radiance from its polygon (`--adaptive TOL`,
-//! `render`).
+//! `render`). A refined base patch where nothing varies any more (under [`COARSEN`] of the
+//! tolerance: after a light was dimmed, or where an early solution's noise refined it) is
+//! coarsened a level.
 
 use crate::scene::Rgb;
 
 use super::Mesh;
+
+/// A refined base patch whose indicator is below this fraction of the tolerance goes back
+/// a level. A smooth variation's indicator halves with the element size, so a patch
+/// refined for exceeding the tolerance shows more than half of it one level down, and
+/// coarsening only below a quarter cannot undo a refinement the next pass would redo.
+/// A step (a shadow edge) does not halve, so it stays refined.
+pub const COARSEN: f64 = 0.25;
 
 /// Refinement levels per base patch ([`Mesh::base_patch`]) after a solution `radiance`
 /// (per element) on `mesh`, built with `current` levels: one more where the indicator
@@ -63,6 +72,8 @@ pub fn refine_levels(
         .map(|b| {
             if worst_of_base[b] > tolerance && level(b) < max_level {
                 level(b) + 1
+            } else if worst_of_base[b] < COARSEN * tolerance && level(b) > 0 {
+                level(b) - 1
             } else {
                 level(b)
             }
@@ -154,8 +165,54 @@ mod tests {
             levels.iter().filter(|&&l| l > 0).count() < mesh.patches.len() / 2,
             "refined far too much"
         );
-        // A level already at the limit stays there.
+        // A level already at the limit stays there where the radiance steps, and goes
+        // back one where it is flat.
         let capped = refine_levels(&mesh, &radiance, &vec![2; mesh.patches.len()], 0.1, 2);
-        assert!(capped.iter().all(|&l| l == 2));
+        for (b, &l) in capped.iter().enumerate() {
+            assert_eq!(l, if levels[b] > 0 { 2 } else { 1 }, "base {b}");
+        }
+    }
+
+    #[test]
+    fn where_nothing_varies_any_more_the_mesh_coarsens_a_level_at_a_time() {
+        let scene = cornell();
+        let base = Mesh::build_with(&scene, 60.0, 120.0).expect("mesh");
+        let levels = vec![2; base.patches.len()];
+        let fine = Mesh::build_refined(&scene, 60.0, 120.0, &levels).expect("mesh");
+        // Flat: every patch goes back a level (one per pass).
+        let flat = vec![Rgb::ONE; fine.elements.len()];
+        assert!(
+            refine_levels(&fine, &flat, &levels, 0.1, 3)
+                .iter()
+                .all(|&l| l == 1)
+        );
+        // Growing by 5 % per half element (7.5) along x: the floor varies by about half the
+        // tolerance across its elements and stays; the side walls, at one x each, go back.
+        let k = 0.05 / 7.5;
+        let ramp: Vec<Rgb> = fine
+            .elements
+            .iter()
+            .map(|e| Rgb::splat((k * e.centroid.x).exp()))
+            .collect();
+        let kept = refine_levels(&fine, &ramp, &levels, 0.1, 3);
+        let (mut floor, mut sides) = (0, 0);
+        for (p, patch) in base.patches.iter().enumerate() {
+            if patch.normal.y > 0.99 && patch.centroid.y < 1.0 {
+                assert_eq!(kept[p], 2, "floor patch {p}");
+                floor += 1;
+            } else if patch.normal.x.abs() > 0.99 && patch.centroid.y > 1.0 {
+                if (patch.centroid.x - 556.0).abs() < 10.0 || patch.centroid.x < 10.0 {
+                    assert_eq!(kept[p], 1, "side wall patch {p}");
+                    sides += 1;
+                }
+            }
+        }
+        assert!(floor > 0 && sides > 0);
+        // Unrefined patches have nowhere to go.
+        assert!(
+            refine_levels(&base, &vec![Rgb::ONE; base.elements.len()], &[], 0.1, 3)
+                .iter()
+                .all(|&l| l == 0)
+        );
     }
 }

@@ -5,7 +5,8 @@
 //! cut into four, elements halved), and the solution is carried onto the refined mesh
 //! (`Solver::carry_to`; solvers that cannot restart from dark there), so the mesh grows
 //! on screen (wireframe) until nothing exceeds the tolerance, [`MAX_LEVEL`]
-//! levels are reached, or the mesh would pass `mesh::MAX_ELEMENTS`.
+//! levels are reached, or the mesh would pass `mesh::MAX_ELEMENTS`. Refined patches where
+//! nothing varies any more (a light dimmed) are coarsened a level on the same passes.
 
 use crate::mesh::Mesh;
 use crate::mesh::adaptive::refine_levels;
@@ -20,6 +21,10 @@ pub const ADAPT_UNSHOT: f64 = 1e-3;
 
 /// Most refinement levels per base patch (each quarters its elements' area).
 pub const MAX_LEVEL: u8 = 3;
+
+/// Most refinement passes: enough to reach [`MAX_LEVEL`] and coarsen back where the light
+/// settled; a bound, should refining and coarsening ever alternate.
+pub const MAX_PASSES: u32 = 2 * MAX_LEVEL as u32 + 2;
 
 /// An adaptive refinement in progress.
 #[derive(Debug, Clone)]
@@ -71,7 +76,10 @@ impl Worker {
                     * 4f64.powi(level(&next, b) - level(&a.levels, b))
             })
             .sum();
-        if next == a.levels || estimate > crate::mesh::MAX_ELEMENTS as f64 {
+        if next == a.levels
+            || a.passes >= MAX_PASSES
+            || estimate > crate::mesh::MAX_ELEMENTS as f64
+        {
             // Done: the solve goes on to convergence on this mesh.
             self.adapting = None;
             self.dirty = true;
