@@ -200,11 +200,11 @@ mod tests {
             if patch.normal.y > 0.99 && patch.centroid.y < 1.0 {
                 assert_eq!(kept[p], 2, "floor patch {p}");
                 floor += 1;
-            } else if patch.normal.x.abs() > 0.99 && patch.centroid.y > 1.0 {
-                if (patch.centroid.x - 556.0).abs() < 10.0 || patch.centroid.x < 10.0 {
-                    assert_eq!(kept[p], 1, "side wall patch {p}");
-                    sides += 1;
-                }
+            } else if patch.normal.x.abs() > 0.99
+                && ((patch.centroid.x - 556.0).abs() < 10.0 || patch.centroid.x < 10.0)
+            {
+                assert_eq!(kept[p], 1, "side wall patch {p}");
+                sides += 1;
             }
         }
         assert!(floor > 0 && sides > 0);

@@ -76,9 +76,7 @@ impl Worker {
                     * 4f64.powi(level(&next, b) - level(&a.levels, b))
             })
             .sum();
-        if next == a.levels
-            || a.passes >= MAX_PASSES
-            || estimate > crate::mesh::MAX_ELEMENTS as f64
+        if next == a.levels || a.passes >= MAX_PASSES || estimate > crate::mesh::MAX_ELEMENTS as f64
         {
             // Done: the solve goes on to convergence on this mesh.
             self.adapting = None;
