@@ -1,0 +1,184 @@
+use super::build::subdivide;
+use super::*;
+use crate::scene::{LoadOptions, Rgb, Scene};
+
+fn cornell() -> Scene {
+    Scene::builtin("cornell", &LoadOptions::default()).expect("cornell")
+}
+
+#[test]
+fn elements_tile_their_patches() {
+    let scene = cornell();
+    let mesh = Mesh::build(&scene, 30.0).expect("mesh");
+    for p in &mesh.patches {
+        let sum: f64 = mesh.elements[p.elements.start as usize..p.elements.end as usize]
+            .iter()
+            .map(|e| e.area)
+            .sum();
+        assert!(
+            (sum - p.area).abs() < 1e-5 * p.area,
+            "patch {} {} vs {}",
+            p.face,
+            sum,
+            p.area
+        );
+        for e in &mesh.elements[p.elements.start as usize..p.elements.end as usize] {
+            let edge = e.corners().iter().zip(e.corners().iter().cycle().skip(1));
+            for (a, b) in edge {
+                assert!((*a - *b).length() <= 30.0 * 1.01 + 1e-9 || p.polygon.len() != 4);
+            }
+        }
+    }
+}
+
+#[test]
+fn triangles_subdivide_with_right_area() {
+    let mut out = Vec::new();
+    let tri = [
+        DVec3::ZERO,
+        DVec3::new(3.0, 0.0, 0.0),
+        DVec3::new(0.0, 3.0, 0.0),
+    ];
+    // Area 4.5, at most half a 1.5² square per element: a 2 × 2 grid of 1.125 each.
+    subdivide(&tri, 1.5, &mut |c| out.push(polygon::area(c)));
+    assert_eq!(out.len(), 4);
+    assert!((out.iter().sum::<f64>() - 4.5).abs() < 1e-12);
+}
+
+#[test]
+fn vertices_are_not_shared_across_creases_or_materials() {
+    let scene = cornell();
+    let mesh = Mesh::build(&scene, 50.0).expect("mesh");
+    // The floor-to-back-wall corner point appears once per surface.
+    let corner = DVec3::new(0.0, 0.0, 559.2);
+    let copies = mesh
+        .vertices
+        .iter()
+        .filter(|v| (**v - corner).length() < 1e-6)
+        .count();
+    assert_eq!(
+        copies, 3,
+        "floor, back wall and right wall each keep their own vertex"
+    );
+}
+
+#[test]
+fn t_vertices_are_interpolated_along_the_coarse_edge() {
+    // Two coplanar patches of one material with different subdivisions.
+    let obj = "mtllib m.mtl\nusemtl w\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\nf 1 2 3 4\nf 2 5 6 3\nusemtl l\nv 0 0 3\nv 0 1 3\nv 1 1 3\nf 7 8 9\n";
+    let mtl = "newmtl w\nKd 0.5 0.5 0.5\nnewmtl l\nKe 1 1 1\n";
+    let scene = Scene::from_obj_str("t.obj", obj, &[("m.mtl", mtl)], &LoadOptions::default())
+        .expect("scene");
+    let mut mesh = Mesh::build(&scene, 0.5).expect("mesh");
+    // Make the second patch finer by rebuilding it alone is awkward; instead check that
+    // conforming patches have no T-vertices and a finer neighbour does.
+    assert_eq!(mesh.t_vertex_count(), 0);
+    let obj2 = obj.replace("v 2 0 0\nv 2 1 0", "v 1.5 0 0\nv 1.5 1 0");
+    let scene2 = Scene::from_obj_str("t.obj", &obj2, &[("m.mtl", mtl)], &LoadOptions::default())
+        .expect("scene");
+    mesh = Mesh::build(&scene2, 0.34).expect("mesh");
+    // The two quads (1 and 0.5 wide) share an edge and a plane: one surface, meshed as
+    // one 1.5 × 1 grid, so no T-vertex, and a linear field is reproduced at every vertex
+    // (a wrong weight, or a vertex shared across the light, breaks it).
+    assert_eq!(mesh.t_vertex_count(), 0);
+    let field = |p: DVec3| 1.0 + 0.3 * p.x + 0.7 * p.y;
+    let linear_error = |mesh: &Mesh| {
+        let values: Vec<Rgb> = mesh
+            .elements
+            .iter()
+            .map(|e| Rgb::splat(field(e.centroid)))
+            .collect();
+        let vv = mesh.vertex_values(&values);
+        mesh.vertices
+            .iter()
+            .zip(&vv)
+            .filter(|(p, _)| p.z == 0.0)
+            .map(|(p, v)| (v.x - field(*p)).abs())
+            .fold(0.0, f64::max)
+    };
+    assert!(linear_error(&mesh) < 1e-9, "{}", linear_error(&mesh));
+    let obj3 = "mtllib m.mtl\nusemtl w\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 1 0.5 0\nv 1.1 0.5 0\nv 1.1 1 0\nf 1 2 5 3 4\nf 5 6 7 3\nusemtl l\nv 0 0 3\nv 0 1 3\nv 1 1 3\nf 8 9 10\n";
+    let scene3 = Scene::from_obj_str("t.obj", obj3, &[("m.mtl", mtl)], &LoadOptions::default())
+        .expect("scene");
+    let mesh3 = Mesh::build(&scene3, 0.2).expect("mesh");
+    // A pentagon and a quad sharing the vertex (1, 0.5) and the edge to (1, 1): finely
+    // meshed, a linear field is still reproduced at every vertex.
+    assert!(linear_error(&mesh3) < 1e-9, "{}", linear_error(&mesh3));
+    // A true T-vertex: a single quad next to two stacked quads (the upper one narrower,
+    // so that the two do not merge into one convex surface without the vertex).
+    let obj4 = "mtllib m.mtl\nusemtl w\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 0.5 0\nv 1 0.5 0\nv 1.5 1 0\nv 1.5 0.5 0\nf 1 2 3 4\nf 2 5 6 9 7\nf 7 9 8 3\nusemtl l\nv 0 0 3\nv 0 1 3\nv 1 1 3\nf 10 11 12\n";
+    let scene4 = Scene::from_obj_str("t.obj", obj4, &[("m.mtl", mtl)], &LoadOptions::default())
+        .expect("scene");
+    let mesh4 = Mesh::build(&scene4, 10.0).expect("mesh");
+    assert_eq!(mesh4.t_vertex_count(), 1);
+    let values: Vec<Rgb> = mesh4
+        .elements
+        .iter()
+        .map(|e| {
+            Rgb::splat(if e.centroid.x < 1.0 {
+                0.0
+            } else {
+                e.centroid.y
+            })
+        })
+        .collect();
+    let vv = mesh4.vertex_values(&values);
+    let t = mesh4
+        .vertices
+        .iter()
+        .position(|p| (*p - DVec3::new(1.0, 0.5, 0.0)).length() < 1e-9)
+        .expect("T-vertex");
+    let a = mesh4
+        .vertices
+        .iter()
+        .position(|p| (*p - DVec3::new(1.0, 0.0, 0.0)).length() < 1e-9)
+        .expect("a");
+    let b = mesh4
+        .vertices
+        .iter()
+        .position(|p| (*p - DVec3::new(1.0, 1.0, 0.0)).length() < 1e-9)
+        .expect("b");
+    assert!(
+        (vv[t] - (vv[a] + vv[b]) * 0.5).length() < 1e-12,
+        "{:?} {:?} {:?}",
+        vv[t],
+        vv[a],
+        vv[b]
+    );
+}
+
+#[test]
+fn vertex_values_reproduce_a_linear_field_up_to_the_boundary() {
+    // Every wall of the Cornell box with radiance linear in position: interior vertices
+    // (averages) and boundary vertices (least-squares extrapolation) must both be exact.
+    // Averaging alone would be off by half an element's gradient at the boundary.
+    let scene = cornell();
+    let mesh = Mesh::build(&scene, 30.0).expect("mesh");
+    let field = |p: DVec3| 1.0 + 0.002 * p.x + 0.001 * p.y + 0.0015 * p.z;
+    let values: Vec<Rgb> = mesh
+        .elements
+        .iter()
+        .map(|e| Rgb::splat(field(e.centroid)))
+        .collect();
+    let vv = mesh.vertex_values(&values);
+    let mut worst: f64 = 0.0;
+    for (p, v) in mesh.vertices.iter().zip(&vv) {
+        worst = worst.max((v.x - field(*p)).abs() / field(*p));
+    }
+    // Not 1e-15: the published walls are a few mm off planar, so some centroids lie off
+    // the fitted plane. Plain averaging is off by ~1 % at the boundary here.
+    assert!(worst < 1e-5, "worst relative error {worst}");
+}
+
+#[test]
+fn too_small_element_size_is_refused() {
+    let scene = cornell();
+    assert!(matches!(
+        Mesh::build(&scene, 0.01),
+        Err(MeshError::TooManyElements { .. })
+    ));
+    assert!(matches!(
+        Mesh::build(&scene, f64::NAN),
+        Err(MeshError::BadElementSize(_))
+    ));
+}
