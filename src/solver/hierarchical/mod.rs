@@ -41,12 +41,14 @@ pub mod flatlet;
 pub mod link;
 pub mod tree;
 
+mod solver_impl;
+
 use std::sync::atomic::AtomicBool;
 
 use rayon::prelude::*;
 
-use super::{Problem, RowCache, Solver, SolverError, channel_sum};
-use crate::scene::{MaterialId, Rgb};
+use super::{Problem, Solver, channel_sum};
+use crate::scene::Rgb;
 use flatlet::BlockLink;
 use link::{Link, Linker};
 use tree::{Hierarchy, NONE};
@@ -398,134 +400,6 @@ fn starts(nodes: usize, receivers: impl Iterator<Item = u32>) -> Vec<u32> {
         start[k] += start[k - 1];
     }
     start
-}
-
-impl Solver for HierarchicalSolver {
-    fn name(&self) -> &'static str {
-        match self.basis {
-            Basis::Haar => "hierarchical",
-            Basis::Flatlet => "wavelet",
-        }
-    }
-    fn problem(&self) -> &Problem {
-        &self.problem
-    }
-    fn step(&mut self, cancel: &AtomicBool) -> bool {
-        if self.tree.root().is_none() || self.residual == 0.0 {
-            return false;
-        }
-        let t0 = std::time::Instant::now();
-        // Links follow the light: refine while the solution still changes much (the
-        // first steps), then only once the residual has fallen 8× since the last refine.
-        if self.steps < 2 || self.residual * 8.0 <= self.residual_at_refine {
-            if !self.refine(cancel) {
-                return false;
-            }
-            self.residual_at_refine = self.residual;
-        }
-        let t1 = std::time::Instant::now();
-        self.gather_push_pull();
-        self.refine_seconds += (t1 - t0).as_secs_f64();
-        self.gather_seconds += t1.elapsed().as_secs_f64();
-        self.steps += 1;
-        true
-    }
-    fn steps(&self) -> usize {
-        self.steps
-    }
-    fn radiosity(&self) -> &[Rgb] {
-        &self.radiosity
-    }
-    fn residual(&self) -> f64 {
-        self.residual
-    }
-    /// No display correction: until the first iteration only the lights show.
-    fn element_radiance(&self, _with_ambient: bool) -> Vec<Rgb> {
-        self.radiosity.clone()
-    }
-    /// Keeps the links and continues from the current solution (later iterations refine
-    /// where the new materials need it).
-    fn set_material(
-        &mut self,
-        id: MaterialId,
-        reflectance: Rgb,
-        emission: Rgb,
-    ) -> Result<(), SolverError> {
-        self.problem
-            .set_material(id.0 as usize, reflectance, emission)?;
-        self.emission = self.problem.patch_emission();
-        self.reflectance = self.problem.patch_reflectance();
-        self.emitted = self.problem.emitted_power();
-        self.residual = if self.emitted > 0.0 { 1.0 } else { 0.0 };
-        self.residual_at_refine = f64::INFINITY;
-        Ok(())
-    }
-    /// Back to the emission alone; the links are kept.
-    fn reset(&mut self) {
-        self.emission = self.problem.patch_emission();
-        self.reflectance = self.problem.patch_reflectance();
-        self.radiosity = self.problem.element_emission();
-        self.change = vec![Rgb::ZERO; self.radiosity.len()];
-        self.emitted = self.problem.emitted_power();
-        self.residual = if self.emitted > 0.0 { 1.0 } else { 0.0 };
-        self.steps = 0;
-        self.residual_at_refine = f64::INFINITY;
-        self.pull();
-    }
-    fn matrix_bytes(&self) -> usize {
-        self.bytes()
-    }
-    /// `max|change| / (1 − ρ_max)` over each element's radiosity (as for the gathering
-    /// solvers; the change of a Jacobi iteration is its residual). Infinite before the
-    /// first iteration.
-    fn error_estimate(&self) -> f64 {
-        if self.steps == 0 {
-            return f64::INFINITY;
-        }
-        let r_max = self
-            .change
-            .iter()
-            .map(|c| c.abs().max_element())
-            .fold(0.0, f64::max);
-        let rho_max = self
-            .reflectance
-            .iter()
-            .map(|r| r.max_element())
-            .fold(0.0, f64::max);
-        super::residual_error_estimate(
-            &self.problem,
-            &self.radiosity,
-            &self.radiosity,
-            r_max,
-            rho_max,
-        )
-    }
-    fn report(&self) -> String {
-        let blocks = if self.basis == Basis::Flatlet {
-            format!("{} flatlet blocks, ", self.blocks.len())
-        } else {
-            String::new()
-        };
-        blocks
-            + &format!(
-                "{} links ({} made), {} nodes ({} planar groups), {:.1} MB; refine {:.2} s, gather {:.2} s",
-                self.links.len(),
-                self.links_made,
-                self.tree.nodes.len(),
-                self.tree.planar_groups,
-                self.bytes() as f64 / 1e6,
-                self.refine_seconds,
-                self.gather_seconds
-            )
-            + if self.link_budget_reached {
-                "; link budget reached (--max-memory): coarser than the tolerance"
-            } else {
-                ""
-            }
-    }
-    fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
-        (self.problem, RowCache::default())
-    }
 }
 
 #[cfg(test)]
