@@ -28,11 +28,15 @@ pub const COARSEN: f64 = 0.25;
 
 /// Refinement levels per base patch ([`Mesh::base_patch`]) after a solution `radiance`
 /// (per element) on `mesh`, built with `current` levels: one more where the indicator
-/// exceeds `tolerance`, at most `max_level`.
+/// exceeds `tolerance` or a shadow boundary crosses the patch (`boundary`, per base patch,
+/// shorter means false; the solver finds them, `solver::refine::penumbra`), at most
+/// `max_level`; one less where the indicator is under [`COARSEN`] × `tolerance` and no
+/// boundary crosses.
 pub fn refine_levels(
     mesh: &Mesh,
     radiance: &[Rgb],
     current: &[u8],
+    boundary: &[bool],
     tolerance: f64,
     max_level: u8,
 ) -> Vec<u8> {
@@ -68,11 +72,12 @@ pub fn refine_levels(
         let b = mesh.base_patch[p] as usize;
         worst_of_base[b] = worst_of_base[b].max(worst);
     }
+    let crossed = |b: usize| boundary.get(b).copied().unwrap_or(false);
     (0..bases)
         .map(|b| {
-            if worst_of_base[b] > tolerance && level(b) < max_level {
+            if (worst_of_base[b] > tolerance || crossed(b)) && level(b) < max_level {
                 level(b) + 1
-            } else if worst_of_base[b] < COARSEN * tolerance && level(b) > 0 {
+            } else if worst_of_base[b] < COARSEN * tolerance && level(b) > 0 && !crossed(b) {
                 level(b) - 1
             } else {
                 level(b)
@@ -150,7 +155,7 @@ mod tests {
             .iter()
             .map(|e| Rgb::splat(if e.centroid.x < 278.0 { 1.0 } else { 0.5 }))
             .collect();
-        let levels = refine_levels(&mesh, &radiance, &[], 0.1, 2);
+        let levels = refine_levels(&mesh, &radiance, &[], &[], 0.1, 2);
         for (p, patch) in mesh.patches.iter().enumerate() {
             let near = patch
                 .bounds
@@ -167,7 +172,7 @@ mod tests {
         );
         // A level already at the limit stays there where the radiance steps, and goes
         // back one where it is flat.
-        let capped = refine_levels(&mesh, &radiance, &vec![2; mesh.patches.len()], 0.1, 2);
+        let capped = refine_levels(&mesh, &radiance, &vec![2; mesh.patches.len()], &[], 0.1, 2);
         for (b, &l) in capped.iter().enumerate() {
             assert_eq!(l, if levels[b] > 0 { 2 } else { 1 }, "base {b}");
         }
@@ -182,7 +187,7 @@ mod tests {
         // Flat: every patch goes back a level (one per pass).
         let flat = vec![Rgb::ONE; fine.elements.len()];
         assert!(
-            refine_levels(&fine, &flat, &levels, 0.1, 3)
+            refine_levels(&fine, &flat, &levels, &[], 0.1, 3)
                 .iter()
                 .all(|&l| l == 1)
         );
@@ -194,7 +199,7 @@ mod tests {
             .iter()
             .map(|e| Rgb::splat((k * e.centroid.x).exp()))
             .collect();
-        let kept = refine_levels(&fine, &ramp, &levels, 0.1, 3);
+        let kept = refine_levels(&fine, &ramp, &levels, &[], 0.1, 3);
         let (mut floor, mut sides) = (0, 0);
         for (p, patch) in base.patches.iter().enumerate() {
             if patch.normal.y > 0.99 && patch.centroid.y < 1.0 {
@@ -210,9 +215,16 @@ mod tests {
         assert!(floor > 0 && sides > 0);
         // Unrefined patches have nowhere to go.
         assert!(
-            refine_levels(&base, &vec![Rgb::ONE; base.elements.len()], &[], 0.1, 3)
-                .iter()
-                .all(|&l| l == 0)
+            refine_levels(
+                &base,
+                &vec![Rgb::ONE; base.elements.len()],
+                &[],
+                &[],
+                0.1,
+                3
+            )
+            .iter()
+            .all(|&l| l == 0)
         );
     }
 }

@@ -5,6 +5,30 @@
 use std::sync::atomic::AtomicBool;
 
 use super::{Problem, Solver, SolverError, SolverKind, solve_to};
+use crate::scene::Rgb;
+
+pub mod penumbra;
+
+/// The next refinement levels per base patch of `problem` after a solution `radiance`:
+/// [`crate::mesh::adaptive::refine_levels`] with the shadow boundaries of
+/// [`penumbra::penumbra_bases`].
+pub fn next_levels(
+    problem: &Problem,
+    radiance: &[Rgb],
+    current: &[u8],
+    tolerance: f64,
+    max_level: u8,
+) -> Vec<u8> {
+    let boundary = penumbra::penumbra_bases(problem, radiance, tolerance);
+    crate::mesh::adaptive::refine_levels(
+        &problem.mesh,
+        radiance,
+        current,
+        &boundary,
+        tolerance,
+        max_level,
+    )
+}
 
 /// `passes` rounds of solve (to `unshot`, at most 1e-3), mark, refine (see
 /// [`crate::mesh::adaptive`]); returns the solver on the last mesh, with the solution
@@ -44,8 +68,7 @@ fn refine_within(
         solve_to(solver.as_mut(), unshot.max(1e-3));
         let radiance = solver.element_radiance(false);
         let mesh = &solver.problem().mesh;
-        let next =
-            crate::mesh::adaptive::refine_levels(mesh, &radiance, &levels, tolerance, passes);
+        let next = next_levels(solver.problem(), &radiance, &levels, tolerance, passes);
         let level = |v: &[u8], b: u32| i32::from(v.get(b as usize).copied().unwrap_or(0));
         let estimate: f64 = mesh
             .patches

@@ -9,7 +9,7 @@
 //! nothing varies any more (a light dimmed) are coarsened a level on the same passes.
 
 use crate::mesh::Mesh;
-use crate::mesh::adaptive::refine_levels;
+use crate::solver::refine::next_levels;
 use crate::solver::{Problem, RowCache};
 
 use super::Event;
@@ -65,7 +65,13 @@ impl Worker {
         }
         let mesh = &solver.problem().mesh;
         let radiance = solver.element_radiance(false);
-        let next = refine_levels(mesh, &radiance, &a.levels, a.tolerance, MAX_LEVEL);
+        let next = next_levels(
+            solver.problem(),
+            &radiance,
+            &a.levels,
+            a.tolerance,
+            MAX_LEVEL,
+        );
         let level = |v: &[u8], b: u32| i32::from(v.get(b as usize).copied().unwrap_or(0));
         let estimate: f64 = mesh
             .patches
