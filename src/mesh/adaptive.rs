@@ -48,12 +48,7 @@ pub fn refine_levels(
         area += e.area;
     }
     let floor = 0.1 * sum / area.max(1e-300);
-    let bases = mesh
-        .base_patch
-        .iter()
-        .map(|&b| b as usize + 1)
-        .max()
-        .unwrap_or(0);
+    let bases = mesh.base_count();
     let level = |b: usize| current.get(b).copied().unwrap_or(0);
     let mut worst_of_base = vec![0.0f64; bases];
     for (p, patch) in mesh.patches.iter().enumerate() {

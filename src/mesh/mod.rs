@@ -295,6 +295,16 @@ impl Mesh {
         &self.patches[id.0 as usize]
     }
 
+    /// Patches of the unrefined mesh ([`Mesh::base_patch`]): the length of refinement
+    /// levels and of anything kept per base patch.
+    pub fn base_count(&self) -> usize {
+        self.base_patch
+            .iter()
+            .map(|&b| b as usize + 1)
+            .max()
+            .unwrap_or(0)
+    }
+
     /// Axis-aligned bounds of all patches.
     pub fn bounds(&self) -> Aabb {
         Aabb::from_points(self.patches.iter().flat_map(|p| p.bounds.iter()))

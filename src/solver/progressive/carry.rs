@@ -85,7 +85,7 @@ impl ProgressiveSolver {
         let old = &self.problem.mesh;
         let mesh = &new.mesh;
         let locator = Locator::new(old);
-        let bases = base_count(old);
+        let bases = old.base_count();
 
         // Shot light per new patch, conserved per base patch.
         let old_shot = self.shot();
@@ -211,14 +211,6 @@ fn patch_mean(mesh: &Mesh, values: &[Rgb]) -> Vec<Rgb> {
         .collect()
 }
 
-fn base_count(mesh: &Mesh) -> usize {
-    mesh.base_patch
-        .iter()
-        .map(|&b| b as usize + 1)
-        .max()
-        .unwrap_or(0)
-}
-
 /// `Σ v A` per base patch.
 fn totals(values: &[Rgb], area: &[f64], base: &[u32], bases: usize) -> Vec<Rgb> {
     let mut t = vec![Rgb::ZERO; bases];
@@ -257,7 +249,7 @@ fn conserve(values: &mut [Rgb], area: &[f64], base: &[u32], target: &[Rgb]) {
 /// the same area and material.
 fn same_base(old: &Mesh, new: &Mesh) -> bool {
     let area = |m: &Mesh| {
-        let mut a = vec![(0.0, None); base_count(m)];
+        let mut a = vec![(0.0, None); m.base_count()];
         for (p, &b) in m.patches.iter().zip(&m.base_patch) {
             a[b as usize].0 += p.area;
             a[b as usize].1 = Some(p.material);
@@ -281,7 +273,7 @@ struct Locator<'a> {
 
 impl<'a> Locator<'a> {
     fn new(old: &'a Mesh) -> Self {
-        let mut patches = vec![Vec::new(); base_count(old)];
+        let mut patches = vec![Vec::new(); old.base_count()];
         for (p, &b) in old.base_patch.iter().enumerate() {
             patches[b as usize].push(p as u32);
         }

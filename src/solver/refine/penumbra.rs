@@ -31,12 +31,7 @@ pub const MAX_LIGHTS: usize = 16;
 /// there crosses one of its elements (see the module docs), for a solution `radiance`.
 pub fn penumbra_bases(problem: &Problem, radiance: &[Rgb], tolerance: f64) -> Vec<bool> {
     let mesh = &problem.mesh;
-    let bases = mesh
-        .base_patch
-        .iter()
-        .map(|&b| b as usize + 1)
-        .max()
-        .unwrap_or(0);
+    let bases = mesh.base_count();
     let mut lights: Vec<(f64, usize)> = mesh
         .patches
         .iter()

@@ -57,7 +57,7 @@ fn close(a: Rgb, b: Rgb, scale: f64) -> bool {
 /// Levels refining the bases of the floor (every base patch facing up) by `level`.
 fn floor_levels(problem: &Problem, level: u8) -> Vec<u8> {
     let mesh = &problem.mesh;
-    let mut levels = vec![0; base_count(mesh)];
+    let mut levels = vec![0; mesh.base_count()];
     for (p, &b) in mesh.patches.iter().zip(&mesh.base_patch) {
         if p.normal.y > 0.9 {
             levels[b as usize] = level;
@@ -73,7 +73,7 @@ fn refining_keeps_the_light_delivered() {
     let mut old = solved(&scene, &[], 2e-2);
     let levels = floor_levels(old.problem(), 2);
     let mut new = carry(&mut old, meshed(&scene, &levels));
-    let bases = base_count(old.mesh());
+    let bases = old.mesh().base_count();
     assert!(
         new.mesh().elements.len() > 2 * old.mesh().elements.len(),
         "the floor was not refined"
@@ -198,7 +198,7 @@ fn a_carried_furnace_converges_like_one_solved_from_dark() {
         ..Default::default()
     };
     let exact = 1.0 / (1.0 - rho);
-    let bases = base_count(&problem(&[]).mesh);
+    let bases = problem(&[]).mesh.base_count();
     // Uniformly refined: the exact answer; refined to mixed levels (whose centroid rule
     // is off by up to 1.3 % at level changes): the same mesh solved from dark. Both to
     // an unshot fraction of 1e-4, which leaves about 1e-4 of the answer to arrive.
