@@ -25,16 +25,20 @@ const MAX_ROW_GAIN: f64 = 1.01;
 
 fn conserve_energy(mesh: &Mesh, shooter: PatchId, row: &mut [f32]) {
     let area = mesh.patch(shooter).area;
-    let delivered: f64 = row
-        .iter()
-        .zip(&mesh.elements)
-        .map(|(f, e)| *f as f64 * e.area)
-        .sum();
+    let delivered = delivered(mesh, row);
     if area > 0.0 && delivered > MAX_ROW_GAIN * area {
         let k = (area / delivered) as f32;
         row.iter_mut().for_each(|f| *f *= k);
         debug_assert!(k.is_finite());
     }
+}
+
+/// The power a unit shot radiance of the row's patch `i` delivers, `Σ_j F_ji A_j`.
+pub(super) fn delivered(mesh: &Mesh, row: &[f32]) -> f64 {
+    row.iter()
+        .zip(&mesh.elements)
+        .map(|(f, e)| f64::from(*f) * e.area)
+        .sum()
 }
 
 /// Rows by shooting patch, with a memory budget and least-recently-used eviction.

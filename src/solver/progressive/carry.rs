@@ -33,7 +33,7 @@ use std::sync::atomic::AtomicBool;
 
 use glam::DVec3;
 
-use super::super::rows::RowCache;
+use super::super::rows::{RowCache, delivered};
 use super::super::{Problem, channel_sum};
 use super::ProgressiveSolver;
 use crate::mesh::{Mesh, PatchId};
@@ -87,8 +87,14 @@ impl ProgressiveSolver {
         let locator = Locator::new(old);
         let bases = old.base_count();
 
-        // Shot light per new patch, conserved per base patch.
-        let old_shot = self.shot();
+        // Shot light per new patch, conserved per base patch. A patch that never shot has
+        // delivered nothing; its `B̄ − U` is round-off, and would cost a row.
+        let old_shot: Vec<Rgb> = self
+            .shot()
+            .into_iter()
+            .zip(&self.delivered)
+            .map(|(s, d)| if *d == Rgb::ZERO { Rgb::ZERO } else { s })
+            .collect();
         let mut shot: Vec<Rgb> = mesh
             .patches
             .iter()
@@ -188,14 +194,6 @@ struct Carried {
     radiosity: Vec<Rgb>,
     unshot: Vec<Rgb>,
     delivered: Vec<Rgb>,
-}
-
-/// The power a unit shot radiance of the row's patch `i` delivers, `Σ_j F_ji A_j`.
-fn delivered(mesh: &Mesh, row: &[f32]) -> f64 {
-    row.iter()
-        .zip(&mesh.elements)
-        .map(|(f, e)| f64::from(*f) * e.area)
-        .sum()
 }
 
 /// Area-weighted mean of element values per patch (`Σ B A / A_p`, as shooting keeps it).
