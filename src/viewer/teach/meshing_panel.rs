@@ -46,7 +46,9 @@ pub(super) fn show(
          changes fast (shadow edges, near the light, contact lines) and may be large where it \
          is constant. Left, the uniform mesh of the viewer; right, an adaptive one: the scene \
          meshed four times coarser, solved, and refined twice (each time halving the \
-         elements) where the radiance across an element varies by more than the tolerance.",
+         elements) where the radiance across an element varies by more than the tolerance, \
+         or a light is partly hidden from it by as much; the solution is carried onto each \
+         refined mesh, none of its light gained or lost.",
     );
     let r = ui
         .add(
