@@ -57,6 +57,18 @@ fn vertex_image(problem: &Problem, radiance: &[Rgb], settings: &RenderSettings) 
     crate::render::Pass::Vertex.render(problem, radiance, settings, 0)
 }
 
+/// `side`² pixels, 4 spp, seed 2, no edge samples, from the Cornell box's camera.
+fn from_the_cornell_camera(side: u32) -> RenderSettings {
+    RenderSettings {
+        width: side,
+        height: side,
+        spp: 4,
+        camera: Camera::cornell(),
+        seed: 2,
+        edge_spp: 0,
+    }
+}
+
 /// `side`² pixels, 4 spp, from the middle of the unit gap between the wall (z = 0) and the
 /// mirror (z = 1), looking at the mirror with a 30° field: every ray meets the mirror.
 fn facing_the_mirror(side: u32) -> RenderSettings {
@@ -210,14 +222,7 @@ fn a_glass_slab_of_index_one_is_invisible() {
     let plain = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
     let slab = cornell_with_slab();
     assert!(slab.has_specular() && !plain.has_specular());
-    let settings = RenderSettings {
-        width: 24,
-        height: 24,
-        spp: 4,
-        camera: Camera::cornell(),
-        seed: 2,
-        edge_spp: 0,
-    };
+    let settings = from_the_cornell_camera(24);
     let points = |scene: &Scene| -> Image {
         let mesh = crate::mesh::Mesh::build(scene, 140.0).expect("mesh");
         let bvh = display_bvh(scene, &mesh);
@@ -390,14 +395,7 @@ fn a_narrow_glossy_lobe_is_the_mirror() {
             m.surface = Surface::Glossy { ks, exponent: 1e6 };
         }
     }
-    let settings = RenderSettings {
-        width: 24,
-        height: 24,
-        spp: 4,
-        camera: Camera::cornell(),
-        seed: 2,
-        edge_spp: 0,
-    };
+    let settings = from_the_cornell_camera(24);
     let (problem, radiance) = solve(mirror, 140.0);
     let a = vertex_image(&problem, &radiance, &settings);
     let mut problem = problem;
@@ -445,14 +443,7 @@ fn diffuse_scenes_render_exactly_as_before() {
         vertex_radiance: &vertex,
         bvh: &bvh,
     };
-    let settings = RenderSettings {
-        width: 16,
-        height: 16,
-        spp: 4,
-        camera: Camera::cornell(),
-        seed: 2,
-        edge_spp: 0,
-    };
+    let settings = from_the_cornell_camera(16);
     let before = vertex_image(&problem, &radiance, &settings);
     let hybrid = Hybrid::new(&view);
     let base = |ray: &Ray, _: &mut Rng| match super::super::shade(&view, ray) {
