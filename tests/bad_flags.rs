@@ -6,8 +6,8 @@ use std::process::{Command, Stdio};
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
-use nusselt::scene::{LoadOptions, MaterialId, Rgb, Scene};
-use nusselt::solver::{ProgressiveSolver, SolverConfig, SolverError, StopCriteria};
+use nusselt_core::scene::{LoadOptions, MaterialId, Rgb, Scene};
+use nusselt_core::solver::{ProgressiveSolver, SolverConfig, SolverError, StopCriteria};
 
 /// Runs the binary; returns (success, stderr). Killed (and the test failed) after `limit`,
 /// so a check that regresses into an endless solve fails instead of hanging CI.

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use nusselt::scene::{LoadOptions, Scene};
+use nusselt_core::scene::{LoadOptions, Scene};
 
 fn bad(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

@@ -3,8 +3,8 @@
 
 use std::path::PathBuf;
 
-use nusselt::cli::cases::{self, Case};
-use nusselt::formfactor::{FormFactorMethod, FormFactorParams};
+use nusselt_core::cases::{self, Case};
+use nusselt_core::formfactor::{FormFactorMethod, FormFactorParams};
 
 mod common;
 use common::{catalogue, json_lines};

@@ -13,11 +13,11 @@ use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 
 use glam::DVec3;
-use nusselt::cli::cases::{self, Case};
-use nusselt::formfactor::{FormFactorMethod, FormFactorParams, contour, exact};
-use nusselt::geometry::polygon;
-use nusselt::scene::{LoadOptions, Scene};
-use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+use nusselt_core::cases::{self, Case};
+use nusselt_core::formfactor::{FormFactorMethod, FormFactorParams, contour, exact};
+use nusselt_core::geometry::polygon;
+use nusselt_core::scene::{LoadOptions, Scene};
+use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 
 mod common;
 use common::{catalogue, hemicube_bound, json_lines, load};
@@ -75,7 +75,7 @@ fn exact_is_reciprocal_to_1e12() {
             cases::evaluate(&back, FormFactorMethod::Exact, &FormFactorParams::default());
         let area = |p: &[[f64; 3]]| {
             let v: Vec<glam::DVec3> = p.iter().map(|x| glam::DVec3::from_array(*x)).collect();
-            nusselt::geometry::polygon::area(&v)
+            nusselt_core::geometry::polygon::area(&v)
         };
         let (a1f, a2f) = (area(&c.a1) * forward, area(&c.a2) * backward);
         let rel = (a1f - a2f).abs() / a1f;
@@ -707,9 +707,9 @@ fn the_cli_takes_every_method_and_its_parameters() {
 /// plain per-element count (its per-patch shortcuts never decide wrongly).
 #[test]
 fn hybrid_counts_hemicube_receivers_like_its_element_rule() {
-    use nusselt::formfactor::hemicube::DeltaTable;
-    use nusselt::formfactor::hybrid;
-    use nusselt::mesh::PatchId;
+    use nusselt_core::formfactor::hemicube::DeltaTable;
+    use nusselt_core::formfactor::hybrid;
+    use nusselt_core::mesh::PatchId;
     for (k, min_pixels, res) in [(5.0, 64.0, 256), (2.0, 0.0, 256), (1.0, 4.0, 64)] {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         let config = SolverConfig {
@@ -766,8 +766,8 @@ fn hybrid_counts_hemicube_receivers_like_its_element_rule() {
 /// contour rows, bit for bit: at equal time it can only differ by timing noise.
 #[test]
 fn hybrid_rows_are_the_contour_rows_on_the_default_cornell_mesh() {
-    use nusselt::formfactor::compute_row;
-    use nusselt::mesh::PatchId;
+    use nusselt_core::formfactor::compute_row;
+    use nusselt_core::mesh::PatchId;
     let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
     let solver = ProgressiveSolver::new(scene, SolverConfig::default()).expect("solver");
     let mesh = solver.mesh();

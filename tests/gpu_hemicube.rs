@@ -7,15 +7,15 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
 use glam::DVec3;
-use nusselt::cli::cases;
-use nusselt::formfactor::hemicube::{
+use nusselt_core::cases;
+use nusselt_core::formfactor::hemicube::{
     self, DeltaTable, Hemicube, HemicubeView, ItemBufferRaster, NONE,
 };
-use nusselt::formfactor::{FormFactorMethod, FormFactorParams};
-use nusselt::gpu::GpuHemicube;
-use nusselt::mesh::PatchId;
-use nusselt::scene::{LoadOptions, Scene};
-use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+use nusselt_core::formfactor::{FormFactorMethod, FormFactorParams};
+use nusselt_core::mesh::PatchId;
+use nusselt_core::scene::{LoadOptions, Scene};
+use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+use nusselt_gpu::GpuHemicube;
 
 mod common;
 
@@ -161,13 +161,13 @@ fn gpu_honours_occluders_like_the_cpu() {
         .form_factors(7, &polygons, &view, &table, &[0, NONE], 1)
         .expect("gpu")[0];
     // The exact values (Lambert on the seen part), and the hemicube's pixel bound for them.
-    let exact = nusselt::formfactor::exact::point_to_visible_polygon(
+    let exact = nusselt_core::formfactor::exact::point_to_visible_polygon(
         origin,
         normal,
         &square,
         std::slice::from_ref(&blocker),
     );
-    let unblocked = nusselt::formfactor::contour::point_to_polygon(origin, normal, &square);
+    let unblocked = nusselt_core::formfactor::contour::point_to_polygon(origin, normal, &square);
     let bound = common::hemicube_bound(256, origin, &[&square, &blocker]);
     eprintln!(
         "cpu {cpu:.9} gpu {on_gpu:.9} exact {exact:.9} (bound {bound:.1e}), unblocked {unblocked:.9}"

@@ -19,9 +19,9 @@ use std::process::Command;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use nusselt::render::{self, Image, RenderSettings, SolutionView};
-use nusselt::scene::{Camera, LoadOptions, Scene};
-use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+use nusselt_core::render::{self, Image, RenderSettings, SolutionView};
+use nusselt_core::scene::{Camera, LoadOptions, Scene};
+use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 use proptest::prelude::*;
 
 /// Seconds one solve may take in a debug build.
@@ -137,7 +137,7 @@ fn corpus_model(file: &str, closed: bool) {
     assert_power(&s, closed);
     let img = image_of(
         &s,
-        nusselt::render::view::default_camera(s.scene()),
+        nusselt_core::render::view::default_camera(s.scene()),
         32,
         24,
         1,
@@ -179,7 +179,7 @@ fn default_view_shows_every_model() {
             },
         )
         .unwrap_or_else(|e| panic!("{file}: solver: {e}"));
-        let camera = nusselt::render::view::default_camera(s.scene());
+        let camera = nusselt_core::render::view::default_camera(s.scene());
         let img = image_of(&s, camera, 64, 48, 1);
         check_image(file, &img);
         let lit = img.pixels.iter().filter(|p| p.max_element() > 0.0).count();
@@ -686,7 +686,7 @@ proptest! {
         for b in s.element_radiance(true) {
             prop_assert!(b.is_finite() && b.min_element() >= 0.0, "radiance {}", b);
         }
-        let camera = nusselt::render::view::default_camera(s.scene());
+        let camera = nusselt_core::render::view::default_camera(s.scene());
         let img = image_of(&s, camera, 16, 12, 1);
         for p in &img.pixels {
             prop_assert!(p.is_finite() && p.min_element() >= 0.0, "pixel {}", p);

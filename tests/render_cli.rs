@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use nusselt::render::Image;
+use nusselt_core::render::Image;
 
 fn nusselt(args: &[&str]) -> String {
     let out = Command::new(env!("CARGO_BIN_EXE_nusselt"))

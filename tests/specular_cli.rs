@@ -3,7 +3,7 @@
 
 use std::process::Command;
 
-use nusselt::render::Image;
+use nusselt_core::render::Image;
 
 fn render_json(builtin: &str, out: &str) -> serde_json::Value {
     let o = Command::new(env!("CARGO_BIN_EXE_nusselt"))

@@ -6,9 +6,9 @@
 
 use std::time::{Duration, Instant};
 
-use nusselt::scene::{LoadOptions, Scene};
-use nusselt::solver::SolverConfig;
-use nusselt::viewer::solver_thread::{Command, SolverHandle, ThreadConfig};
+use nusselt_core::scene::{LoadOptions, Scene};
+use nusselt_core::solver::SolverConfig;
+use nusselt_viewer::solver_thread::{Command, SolverHandle, ThreadConfig};
 
 #[test]
 fn the_mesh_grows_where_the_light_varies_then_converges() {

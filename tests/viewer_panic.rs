@@ -6,10 +6,10 @@
 
 use std::time::{Duration, Instant};
 
-use nusselt::scene::{LoadOptions, Scene};
-use nusselt::solver::SolverConfig;
-use nusselt::viewer::snapshot::Snapshot;
-use nusselt::viewer::solver_thread::{Command, Event, SolverHandle, ThreadConfig};
+use nusselt_core::scene::{LoadOptions, Scene};
+use nusselt_core::solver::SolverConfig;
+use nusselt_viewer::snapshot::Snapshot;
+use nusselt_viewer::solver_thread::{Command, Event, SolverHandle, ThreadConfig};
 
 fn cornell() -> Scene {
     Scene::builtin("cornell", &LoadOptions::default()).expect("cornell")

@@ -6,12 +6,12 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
-use nusselt::formfactor::FormFactorMethod;
-use nusselt::geometry::Rng;
-use nusselt::scene::{LoadOptions, MaterialId, Scene};
-use nusselt::solver::{ProgressiveSolver, SolverConfig, SolverKind, StopCriteria};
-use nusselt::viewer::snapshot::Snapshot;
-use nusselt::viewer::solver_thread::{Command, Event, SolverHandle, ThreadConfig};
+use nusselt_core::formfactor::FormFactorMethod;
+use nusselt_core::geometry::Rng;
+use nusselt_core::scene::{LoadOptions, MaterialId, Scene};
+use nusselt_core::solver::{ProgressiveSolver, SolverConfig, SolverKind, StopCriteria};
+use nusselt_viewer::snapshot::Snapshot;
+use nusselt_viewer::solver_thread::{Command, Event, SolverHandle, ThreadConfig};
 
 fn cornell() -> Scene {
     Scene::builtin("cornell", &LoadOptions::default()).expect("cornell")
@@ -175,7 +175,7 @@ fn random_command_sequences_never_panic_or_deadlock() {
 }
 
 /// Area-weighted relative L2 difference of per-vertex radiance over the triangle corners.
-fn rel_l2(a: &[[f32; 3]], b: &[[f32; 3]], g: &nusselt::viewer::snapshot::Geometry) -> f64 {
+fn rel_l2(a: &[[f32; 3]], b: &[[f32; 3]], g: &nusselt_viewer::snapshot::Geometry) -> f64 {
     let (mut num, mut den) = (0.0, 0.0);
     for t in g.indices.chunks_exact(3) {
         let p = |k: usize| glam::DVec3::from(g.positions[t[k] as usize].map(f64::from));
@@ -338,7 +338,7 @@ fn ply_export_holds_the_snapshot() {
     let deadline = Instant::now() + Duration::from_secs(120);
     let s = first_snapshot(&h, deadline, |s| s.stats.limit_reached);
     h.shutdown(Duration::from_secs(30));
-    let bytes = nusselt::viewer::export::ply_bytes(&s, true, 2.0);
+    let bytes = nusselt_viewer::export::ply_bytes(&s, true, 2.0);
     let end = b"end_header\n";
     let at = bytes
         .windows(end.len())
@@ -363,7 +363,7 @@ fn ply_export_holds_the_snapshot() {
         for c in 0..3 {
             let want = s.radiance[k][c] + s.correction[k][c];
             assert_eq!(f(o + 12 + 4 * c), want);
-            assert_eq!(bytes[o + 24 + c], nusselt::viewer::export::srgb8(want, 2.0));
+            assert_eq!(bytes[o + 24 + c], nusselt_viewer::export::srgb8(want, 2.0));
             assert_eq!(f(o + 4 * c), s.geometry.positions[k][c]);
         }
     }

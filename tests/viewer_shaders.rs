@@ -74,10 +74,10 @@ fn check_shader(
 fn viewport_shader_matches_the_rust_side() {
     check_shader(
         "viewport.wgsl",
-        nusselt::viewer::render::SHADER_SOURCE,
+        nusselt_viewer::render::SHADER_SOURCE,
         &["vs_mesh", "fs_mesh", "vs_line", "fs_line"],
         "Uniforms",
-        std::mem::size_of::<nusselt::viewer::render::Uniforms>(),
+        std::mem::size_of::<nusselt_viewer::render::Uniforms>(),
     );
 }
 
@@ -85,10 +85,10 @@ fn viewport_shader_matches_the_rust_side() {
 fn hemicube_shader_matches_the_rust_side() {
     check_shader(
         "hemicube.wgsl",
-        nusselt::gpu::hemicube::SHADER_SOURCE,
+        nusselt_gpu::hemicube::SHADER_SOURCE,
         &["vs_main", "fs_main"],
         "Face",
-        std::mem::size_of::<nusselt::gpu::hemicube::FaceUniform>(),
+        std::mem::size_of::<nusselt_gpu::hemicube::FaceUniform>(),
     );
 }
 

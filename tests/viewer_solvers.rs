@@ -7,10 +7,10 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
-use nusselt::scene::{LoadOptions, Scene};
-use nusselt::solver::{ProgressiveSolver, SolverConfig, SolverKind, StopCriteria};
-use nusselt::viewer::snapshot::{Geometry, Snapshot};
-use nusselt::viewer::solver_thread::{Command, Event, SolverHandle, ThreadConfig};
+use nusselt_core::scene::{LoadOptions, Scene};
+use nusselt_core::solver::{ProgressiveSolver, SolverConfig, SolverKind, StopCriteria};
+use nusselt_viewer::snapshot::{Geometry, Snapshot};
+use nusselt_viewer::solver_thread::{Command, Event, SolverHandle, ThreadConfig};
 
 fn cornell() -> Scene {
     Scene::builtin("cornell", &LoadOptions::default()).expect("cornell")
@@ -238,12 +238,12 @@ fn the_chosen_solver_survives_a_remesh_and_a_method_change() {
     assert_eq!(remeshed.stats.solver, "jacobi");
     send(
         &h,
-        Command::SetMethod(nusselt::formfactor::FormFactorMethod::Exact),
+        Command::SetMethod(nusselt_core::formfactor::FormFactorMethod::Exact),
         deadline,
     );
     send(&h, Command::Step, deadline);
     let method = first_snapshot(&h, deadline, |s| {
-        s.method == nusselt::formfactor::FormFactorMethod::Exact && s.stats.steps == 1
+        s.method == nusselt_core::formfactor::FormFactorMethod::Exact && s.stats.steps == 1
     });
     assert_eq!(method.stats.solver, "jacobi");
     assert_eq!(method.geometry.id, remeshed.geometry.id);
@@ -262,7 +262,7 @@ fn the_chosen_solver_survives_a_remesh_and_a_method_change() {
 
 /// Hierarchical radiosity chosen over the thread: it keeps the mesh, reports its links and
 /// their memory, converges, and shows exactly what the same solver run directly computes
-/// (its accuracy is tested in `src/solver/hierarchical`; here, that the thread runs it
+/// (its accuracy is tested in `crates/core/src/solver/hierarchical`; here, that the thread runs it
 /// unchanged: deterministic links, the same values to f32 round-off).
 #[test]
 fn hierarchical_over_the_thread_matches_a_direct_run() {
@@ -305,9 +305,9 @@ fn multilevel_over_the_thread_matches_a_direct_run(kind: SolverKind) {
     assert!(done.stats.report.contains("links"), "{}", done.stats.report);
     assert!(done.stats.matrix_bytes > 0);
 
-    let problem = nusselt::solver::Problem::new(cornell(), coarse_config()).expect("problem");
+    let problem = nusselt_core::solver::Problem::new(cornell(), coarse_config()).expect("problem");
     let mut direct = kind.build(problem).expect("solver");
-    nusselt::solver::run_solver(
+    nusselt_core::solver::run_solver(
         direct.as_mut(),
         &StopCriteria {
             unshot: stop,

@@ -6,12 +6,12 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use nusselt::scene::{LoadOptions, Scene};
-use nusselt::solver::SolverConfig;
-use nusselt::viewer::snapshot::Snapshot;
-use nusselt::viewer::solver_thread::{Command, SolverHandle, ThreadConfig};
-use nusselt::viewer::teach::TeachCommand;
-use nusselt::viewer::teach::hemicube::HemicubeRequest;
+use nusselt_core::scene::{LoadOptions, Scene};
+use nusselt_core::solver::SolverConfig;
+use nusselt_viewer::snapshot::Snapshot;
+use nusselt_viewer::solver_thread::{Command, SolverHandle, ThreadConfig};
+use nusselt_viewer::teach::TeachCommand;
+use nusselt_viewer::teach::hemicube::HemicubeRequest;
 
 fn send(h: &SolverHandle, mut c: Command, deadline: Instant) {
     loop {
@@ -152,14 +152,14 @@ fn the_matrix_view_refuses_too_many_patches() {
     .expect("spawn");
     let deadline = Instant::now() + Duration::from_secs(240);
     let first = first_snapshot(&h, deadline, |_| true);
-    assert!(first.geometry.patches > nusselt::viewer::teach::matrix::MAX_PATCHES);
+    assert!(first.geometry.patches > nusselt_viewer::teach::matrix::MAX_PATCHES);
     send(&h, Command::Teach(TeachCommand::Matrix(true)), deadline);
     send(&h, Command::Step, deadline);
     let after = first_snapshot(&h, deadline, |s| s.stats.steps == 1);
     assert!(after.teach_matrix.is_none());
     let errors: Vec<_> = std::iter::from_fn(|| h.try_event())
         .filter_map(|e| match e {
-            nusselt::viewer::solver_thread::Event::Error(m) => Some(m),
+            nusselt_viewer::solver_thread::Event::Error(m) => Some(m),
             _ => None,
         })
         .collect();
@@ -176,7 +176,7 @@ fn the_matrix_view_refuses_too_many_patches() {
 /// arrives from its own thread with the adaptive mesh smaller than the uniform one.
 #[test]
 fn compare_and_mesh_views_over_the_thread() {
-    use nusselt::viewer::teach::compare::CompareCommand;
+    use nusselt_viewer::teach::compare::CompareCommand;
     let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
     let mut h = SolverHandle::spawn(
         scene,

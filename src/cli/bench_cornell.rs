@@ -8,10 +8,10 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 
-use crate::formfactor::FormFactorMethod;
-use crate::render::{self, Image, RenderSettings};
-use crate::scene::{LoadOptions, Scene};
-use crate::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
+use nusselt_core::formfactor::FormFactorMethod;
+use nusselt_core::render::{self, Image, RenderSettings};
+use nusselt_core::scene::{LoadOptions, Scene};
+use nusselt_core::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
 
 use super::bench_images::{Recorder, first_time_below, render_elements};
 use super::plot::{self, Plot, Series};
@@ -121,7 +121,7 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
             spp: 16,
             camera,
             seed: 1,
-            edge_spp: crate::render::DEFAULT_EDGE_SPP,
+            edge_spp: nusselt_core::render::DEFAULT_EDGE_SPP,
         };
         let direct =
             render::direct::render_solution(s.problem(), &s.element_radiance(true), &settings);
@@ -204,7 +204,7 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
             seed: 7,
             edge_spp: 0,
         };
-        let image = crate::render::pathtrace::reference(&scene, &settings, &|_| {});
+        let image = nusselt_core::render::pathtrace::reference(&scene, &settings, &|_| {});
         let t = start.elapsed().as_secs_f64();
         let e = render::relative_rms(&image, &reference, &mask)?;
         rows.push((

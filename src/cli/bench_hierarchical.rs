@@ -16,14 +16,14 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 
-use crate::render::{self, Image};
-use crate::scene::{LoadOptions, Scene};
-use crate::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
+use nusselt_core::render::{self, Image};
+use nusselt_core::scene::{LoadOptions, Scene};
+use nusselt_core::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
 
 use super::bench::{peak_mb, reset_peak};
 use super::bench_images::render_elements;
 
-/// Link tolerances measured (the default is [`crate::solver::DEFAULT_LINK_TOLERANCE`]).
+/// Link tolerances measured (the default is [`nusselt_core::solver::DEFAULT_LINK_TOLERANCE`]).
 const TOLERANCES: [f64; 4] = [0.02, 0.005, 0.002, 0.001];
 /// Those for flatlets (each block costs 16 oracle evaluations).
 const WAVELET_TOLERANCES: [f64; 3] = [0.02, 0.005, 0.002];
@@ -68,7 +68,7 @@ pub fn cornell(out: &Path, reference_path: &Path) -> Result<()> {
     for (kind, tolerance) in runs {
         reset_peak();
         let config = SolverConfig {
-            link_tolerance: tolerance.unwrap_or(crate::solver::DEFAULT_LINK_TOLERANCE),
+            link_tolerance: tolerance.unwrap_or(nusselt_core::solver::DEFAULT_LINK_TOLERANCE),
             ..SolverConfig::default()
         };
         let start = Instant::now();

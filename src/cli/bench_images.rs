@@ -21,9 +21,9 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 
-use crate::render::{self, Image, RenderSettings, SolutionView};
-use crate::scene::{LoadOptions, Rgb, Scene};
-use crate::solver::{
+use nusselt_core::render::{self, Image, RenderSettings, SolutionView};
+use nusselt_core::scene::{LoadOptions, Rgb, Scene};
+use nusselt_core::solver::{
     Problem, ProgressiveSolver, Solver, SolverConfig, SolverKind, StopCriteria, run_solver,
 };
 
@@ -35,7 +35,7 @@ use super::plot::{self, Plot, Series};
 pub(super) fn render_elements(
     problem: &Problem,
     radiance: &[Rgb],
-    bvh: &crate::geometry::Bvh,
+    bvh: &nusselt_core::geometry::Bvh,
     spp: u32,
 ) -> Image {
     let vertex = problem.mesh.vertex_values(radiance);
@@ -51,7 +51,7 @@ pub(super) fn render_elements(
         spp,
         camera: render::view::default_camera(&problem.scene),
         seed: 1,
-        edge_spp: crate::render::DEFAULT_EDGE_SPP,
+        edge_spp: nusselt_core::render::DEFAULT_EDGE_SPP,
     };
     render::render_solution(&view, &settings)
 }
@@ -90,7 +90,7 @@ pub fn meshed(
 ) -> Result<Box<dyn Solver>> {
     let problem = Problem::new(scene.clone(), config)?;
     Ok(match adaptive {
-        Some(tolerance) => crate::solver::refine::refine_adaptively(
+        Some(tolerance) => nusselt_core::solver::refine::refine_adaptively(
             problem,
             SolverKind::Shooting,
             tolerance,

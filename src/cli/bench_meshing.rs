@@ -11,9 +11,9 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 
-use crate::render::{self, Image, RenderSettings};
-use crate::scene::{LoadOptions, Scene};
-use crate::solver::{SolverConfig, StopCriteria, run_solver};
+use nusselt_core::render::{self, Image, RenderSettings};
+use nusselt_core::scene::{LoadOptions, Scene};
+use nusselt_core::solver::{SolverConfig, StopCriteria, run_solver};
 
 use super::bench_images::render_elements;
 use super::plot::{self, Plot, Series};
@@ -40,7 +40,7 @@ pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
         spp: 16,
         camera,
         seed: 1,
-        edge_spp: crate::render::DEFAULT_EDGE_SPP,
+        edge_spp: nusselt_core::render::DEFAULT_EDGE_SPP,
     };
     let never = AtomicBool::new(false);
     let measure = |kind: &'static str,

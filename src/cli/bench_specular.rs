@@ -17,10 +17,10 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 
-use crate::render::pathtrace::PathTracer;
-use crate::render::{self, Image, RenderSettings};
-use crate::scene::{LoadOptions, Scene};
-use crate::solver::{Problem, SolverConfig, SolverKind, solve_to};
+use nusselt_core::render::pathtrace::PathTracer;
+use nusselt_core::render::{self, Image, RenderSettings};
+use nusselt_core::scene::{LoadOptions, Scene};
+use nusselt_core::solver::{Problem, SolverConfig, SolverKind, solve_to};
 
 /// Samples per pixel of the hybrid's renders (what `render` does by default).
 const HYBRID_SPP: u32 = 16;

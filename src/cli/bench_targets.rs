@@ -18,8 +18,8 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 
-use crate::render::{self, Image};
-use crate::scene::{LoadOptions, Scene};
+use nusselt_core::render::{self, Image};
+use nusselt_core::scene::{LoadOptions, Scene};
 
 /// Runs of each radiosity configuration (the median is reported).
 const RUNS: usize = 5;

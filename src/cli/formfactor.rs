@@ -7,9 +7,9 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 
-use super::cases;
 use super::method::{MethodArgs, parse_method};
-use crate::formfactor::FormFactorParams;
+use nusselt_core::cases;
+use nusselt_core::formfactor::FormFactorParams;
 
 #[derive(Args, Debug)]
 pub struct FormfactorArgs {

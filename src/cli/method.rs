@@ -6,8 +6,8 @@ use std::sync::Arc;
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 
-use crate::formfactor::hemicube::ItemBufferRaster;
-use crate::formfactor::{FormFactorMethod, FormFactorParams};
+use nusselt_core::formfactor::hemicube::ItemBufferRaster;
+use nusselt_core::formfactor::{FormFactorMethod, FormFactorParams};
 
 /// Parameters of the hemicube and hybrid methods, shared by `render` and `formfactor`.
 #[derive(Args, Debug, Clone)]
@@ -62,7 +62,7 @@ pub fn raster_for(method: FormFactorMethod) -> Result<Option<Arc<dyn ItemBufferR
     if method != FormFactorMethod::GpuHemicube {
         return Ok(None);
     }
-    let gpu = crate::gpu::GpuHemicube::new().context("--formfactor gpu-hemicube")?;
+    let gpu = nusselt_gpu::GpuHemicube::new().context("--formfactor gpu-hemicube")?;
     Ok(Some(Arc::new(gpu)))
 }
 

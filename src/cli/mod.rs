@@ -10,7 +10,6 @@ mod bench_images;
 mod bench_meshing;
 mod bench_specular;
 mod bench_targets;
-pub mod cases;
 mod formfactor;
 mod method;
 mod pass;
@@ -24,7 +23,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 
-use crate::scene::{LoadOptions, Scene};
+use nusselt_core::scene::{LoadOptions, Scene};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -167,15 +166,19 @@ pub struct ViewArgs {
 }
 
 impl ViewArgs {
-    pub fn settings(&self, scene: &Scene, seed: u64) -> Result<crate::render::RenderSettings> {
+    pub fn settings(
+        &self,
+        scene: &Scene,
+        seed: u64,
+    ) -> Result<nusselt_core::render::RenderSettings> {
         check_count("--width", self.width, MAX_IMAGE_SIDE)?;
         check_count("--height", self.height, MAX_IMAGE_SIDE)?;
         check_count("--spp", self.spp, MAX_SPP)?;
         let camera = match &self.camera {
-            Some(text) => crate::scene::Camera::parse(text).context("--camera")?,
-            None => crate::render::view::default_camera(scene),
+            Some(text) => nusselt_core::scene::Camera::parse(text).context("--camera")?,
+            None => nusselt_core::render::view::default_camera(scene),
         };
-        Ok(crate::render::RenderSettings {
+        Ok(nusselt_core::render::RenderSettings {
             width: self.width,
             height: self.height,
             spp: self.spp,

@@ -18,9 +18,9 @@ use std::time::Instant;
 
 use anyhow::{Result, bail};
 
-use crate::render::{self, Image, Pass, RenderSettings};
-use crate::scene::Rgb;
-use crate::solver::Problem;
+use nusselt_core::render::{self, Image, Pass, RenderSettings};
+use nusselt_core::scene::Rgb;
+use nusselt_core::solver::Problem;
 
 /// Seconds a whole `render` run may take (load to image) when `--time-budget` is not given.
 pub const DEFAULT_TIME_BUDGET: f64 = 10.0;

@@ -9,7 +9,7 @@ use clap::Args;
 
 use super::render::{bar, check_image_out};
 use super::{SceneArgs, ViewArgs};
-use crate::render::{self, Image};
+use nusselt_core::render::{self, Image};
 
 #[derive(Args, Debug)]
 pub struct ReferenceArgs {
@@ -80,8 +80,8 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
     let image = Image::load_pfm(&args.image)?;
     let reference = Image::load_pfm(&args.reference)?;
     let camera = match &args.camera {
-        Some(text) => crate::scene::Camera::parse(text).context("--camera")?,
-        None => crate::render::view::default_camera(&scene),
+        Some(text) => nusselt_core::scene::Camera::parse(text).context("--camera")?,
+        None => nusselt_core::render::view::default_camera(&scene),
     };
     let mask = render::error_mask(&scene, &camera, reference.width, reference.height);
     let error = render::relative_rms(&image, &reference, &mask)?;

@@ -12,9 +12,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use super::method::{MethodArgs, parse_method, raster_for};
 use super::pass::{parse_pass, render_chosen};
 use super::{MAX_RAYS, MAX_VIS_RAYS, SceneArgs, ViewArgs, check_count, check_output};
-use crate::formfactor::FormFactorParams;
-use crate::render::{self, Image};
-use crate::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
+use nusselt_core::formfactor::FormFactorParams;
+use nusselt_core::render::{self, Image};
+use nusselt_core::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
@@ -85,20 +85,20 @@ pub struct RenderArgs {
     pub time_budget: Option<f64>,
     /// A priori discontinuity meshing: cut the surfaces along the shadow outlines each
     /// light vertex casts through each blocker face before meshing, so element edges follow
-    /// the umbra and penumbra boundaries (`src/mesh/discontinuity.rs`).
+    /// the umbra and penumbra boundaries (`crates/core/src/mesh/discontinuity.rs`).
     #[arg(long)]
     pub discontinuity: bool,
     /// Gather rays per pixel of `--pass gather` (shared among the pixel's samples; the
     /// gather's noise falls as 1/√N).
-    #[arg(long, default_value_t = crate::render::gather::GATHER_RAYS_PER_PIXEL)]
+    #[arg(long, default_value_t = nusselt_core::render::gather::GATHER_RAYS_PER_PIXEL)]
     pub gather_rays: u32,
     /// Extra samples in pixels whose first `--spp` samples disagree by more than 10 % of
     /// their mean (silhouettes, shadow and contact edges, where 16 samples misjudge how
     /// much of the pixel each side covers); 0: none
-    #[arg(long, default_value_t = crate::render::DEFAULT_EDGE_SPP)]
+    #[arg(long, default_value_t = nusselt_core::render::DEFAULT_EDGE_SPP)]
     pub edge_spp: u32,
     /// Adaptive meshing: solve, halve the elements of every patch where the radiance varies
-    /// across an element by more than this fraction of it (`src/mesh/adaptive.rs`), and solve
+    /// across an element by more than this fraction of it (`crates/core/src/mesh/adaptive.rs`), and solve
     /// again on the refined mesh; `--adaptive-passes` times (default 2), each to
     /// `--unshot` (at least 1e-3).
     #[arg(long, allow_negative_numbers = true)]
@@ -267,7 +267,7 @@ fn render(args: &RenderArgs) -> Result<()> {
             args.edge_spp
         );
     }
-    let settings = crate::render::RenderSettings {
+    let settings = nusselt_core::render::RenderSettings {
         edge_spp: args.edge_spp,
         ..args.view.settings(&scene, args.seed)?
     };
@@ -292,7 +292,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         regional_ambient,
         link_tolerance: args
             .link_tolerance
-            .unwrap_or(crate::solver::DEFAULT_LINK_TOLERANCE),
+            .unwrap_or(nusselt_core::solver::DEFAULT_LINK_TOLERANCE),
         row_cache_bytes: max_memory_bytes(args.max_memory)?,
         raster: raster_for(method)?,
         discontinuity: args.discontinuity,
@@ -301,7 +301,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     let solve_start = Instant::now();
     let problem = Problem::new(scene, config)?;
     let mut solver = match args.adaptive {
-        Some(tolerance) => crate::solver::refine::refine_adaptively(
+        Some(tolerance) => nusselt_core::solver::refine::refine_adaptively(
             problem,
             kind,
             tolerance,

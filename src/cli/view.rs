@@ -7,10 +7,10 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 
 use super::SceneArgs;
-use crate::formfactor::FormFactorMethod;
-use crate::solver::SolverKind;
-use crate::viewer::teach::TeachView;
-use crate::viewer::{
+use nusselt_core::formfactor::FormFactorMethod;
+use nusselt_core::solver::SolverKind;
+use nusselt_viewer::teach::TeachView;
+use nusselt_viewer::{
     Automation, EditSpec, ScreenshotPlan, ScreenshotWhen, UiOptions, ViewerOptions,
 };
 
@@ -262,7 +262,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
         viewport_png: args.viewport_png.clone(),
         export_ply: args.export_ply.clone(),
     };
-    crate::viewer::run(ViewerOptions {
+    nusselt_viewer::run(ViewerOptions {
         scene,
         ui: UiOptions {
             element_size: args.element_size,

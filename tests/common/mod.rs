@@ -4,23 +4,11 @@
 
 pub mod display;
 
-use std::path::PathBuf;
-
 use glam::DVec3;
-use nusselt::cli::cases::{self, Case};
-
-/// A case file of tests/data.
-pub fn load(name: &str) -> Vec<Case> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data")
-        .join(name);
-    cases::load(&p).expect("case file")
-}
-
-/// The reference catalogue (tests/data/formfactors.json).
-pub fn catalogue() -> Vec<Case> {
-    load("formfactors.json")
-}
+#[path = "../../crates/core/tests/common/mod.rs"]
+mod core_common;
+#[allow(unused_imports)] // Not every test file uses the core helpers.
+pub use core_common::*;
 
 /// One JSON value per line of a command's standard output.
 pub fn json_lines(stdout: Vec<u8>) -> Vec<serde_json::Value> {
@@ -55,8 +43,8 @@ pub fn skip(reason: &str) {
 }
 
 /// The GPU hemicube, or `None` after [`skip`] (a failure in CI) with the adapter's error.
-pub fn gpu_hemicube() -> Option<nusselt::gpu::GpuHemicube> {
-    match nusselt::gpu::GpuHemicube::new() {
+pub fn gpu_hemicube() -> Option<nusselt_gpu::GpuHemicube> {
+    match nusselt_gpu::GpuHemicube::new() {
         Ok(g) => {
             eprintln!("GPU adapter: {}", g.adapter());
             Some(g)
@@ -96,81 +84,4 @@ pub fn hemicube_bound(res: u32, p: DVec3, polygons: &[&[DVec3]]) -> f64 {
         }
     }
     SQRT_2 * d * theta / PI + (15.0 * edges + 8.0) * d * d / PI
-}
-
-/// Shoots to `unshot` within `budget_s` wall seconds; fails with what was reached otherwise.
-/// Returns the seconds taken.
-pub fn converge_within(
-    s: &mut nusselt::solver::ProgressiveSolver,
-    unshot: f64,
-    budget_s: f64,
-) -> f64 {
-    let start = std::time::Instant::now();
-    s.run(
-        &nusselt::solver::StopCriteria {
-            unshot,
-            max_shots: None,
-            max_seconds: Some(budget_s),
-            tolerance: None,
-        },
-        &std::sync::atomic::AtomicBool::new(false),
-        &mut |_| {},
-    );
-    let secs = start.elapsed().as_secs_f64();
-    eprintln!(
-        "{}: {} faces, {} patches, {} elements, {} shots, unshot {:.3e} in {secs:.1} s",
-        s.scene().name,
-        s.scene().faces.len(),
-        s.mesh().patches.len(),
-        s.mesh().elements.len(),
-        s.shots(),
-        s.unshot_fraction()
-    );
-    assert!(
-        s.unshot_fraction() <= unshot,
-        "{}: not converged to unshot {unshot} within {budget_s} s: {} shots, {} patches, {} \
-         elements, unshot {:.3e}",
-        s.scene().name,
-        s.shots(),
-        s.mesh().patches.len(),
-        s.mesh().elements.len(),
-        s.unshot_fraction()
-    );
-    secs
-}
-
-/// Every element radiance (with and without the ambient term), every incident value and
-/// every display-vertex value is finite and non-negative.
-pub fn assert_sane(s: &nusselt::solver::ProgressiveSolver) {
-    let name = &s.scene().name;
-    for ambient in [false, true] {
-        for (j, b) in s.element_radiance(ambient).iter().enumerate() {
-            assert!(
-                b.is_finite() && b.min_element() >= 0.0,
-                "{name}: element {j} radiance {b} (ambient {ambient})"
-            );
-        }
-    }
-    for (j, h) in s.incident().iter().enumerate() {
-        assert!(
-            h.is_finite() && h.min_element() >= 0.0,
-            "{name}: element {j} incident {h}"
-        );
-    }
-    let vertex_radiance = s.mesh().vertex_values(&s.element_radiance(true));
-    for (v, b) in vertex_radiance.iter().enumerate() {
-        assert!(
-            b.is_finite() && b.min_element() >= 0.0,
-            "{name}: vertex {v} radiance {b:?}"
-        );
-    }
-}
-
-/// Unshot power Σ ΔB·A over patches, per channel.
-pub fn unshot_power(s: &nusselt::solver::ProgressiveSolver) -> DVec3 {
-    s.unshot()
-        .iter()
-        .zip(&s.mesh().patches)
-        .map(|(u, p)| *u * p.area)
-        .sum()
 }

@@ -1,0 +1,107 @@
+//! Helpers shared by the core's test files (not a test target of its own): the form-factor
+//! case files of the repository's `tests/data` and solver checks. The binary's tests include
+//! this file too (`tests/common/mod.rs`).
+#![allow(dead_code)] // Each test file uses its own subset.
+
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+use nusselt_core::cases::{self, Case};
+
+/// The repository's root (the folder of the workspace's `Cargo.lock`), whichever crate's
+/// tests ask.
+pub fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .ancestors()
+        .find(|p| p.join("Cargo.lock").exists())
+        .expect("the workspace root above CARGO_MANIFEST_DIR")
+        .to_path_buf()
+}
+
+/// A case file of tests/data.
+pub fn load(name: &str) -> Vec<Case> {
+    let p = repo_root().join("tests/data").join(name);
+    cases::load(&p).expect("case file")
+}
+
+/// The reference catalogue (tests/data/formfactors.json).
+pub fn catalogue() -> Vec<Case> {
+    load("formfactors.json")
+}
+
+/// Shoots to `unshot` within `budget_s` wall seconds; fails with what was reached otherwise.
+/// Returns the seconds taken.
+pub fn converge_within(
+    s: &mut nusselt_core::solver::ProgressiveSolver,
+    unshot: f64,
+    budget_s: f64,
+) -> f64 {
+    let start = std::time::Instant::now();
+    s.run(
+        &nusselt_core::solver::StopCriteria {
+            unshot,
+            max_shots: None,
+            max_seconds: Some(budget_s),
+            tolerance: None,
+        },
+        &std::sync::atomic::AtomicBool::new(false),
+        &mut |_| {},
+    );
+    let secs = start.elapsed().as_secs_f64();
+    eprintln!(
+        "{}: {} faces, {} patches, {} elements, {} shots, unshot {:.3e} in {secs:.1} s",
+        s.scene().name,
+        s.scene().faces.len(),
+        s.mesh().patches.len(),
+        s.mesh().elements.len(),
+        s.shots(),
+        s.unshot_fraction()
+    );
+    assert!(
+        s.unshot_fraction() <= unshot,
+        "{}: not converged to unshot {unshot} within {budget_s} s: {} shots, {} patches, {} \
+         elements, unshot {:.3e}",
+        s.scene().name,
+        s.shots(),
+        s.mesh().patches.len(),
+        s.mesh().elements.len(),
+        s.unshot_fraction()
+    );
+    secs
+}
+
+/// Every element radiance (with and without the ambient term), every incident value and
+/// every display-vertex value is finite and non-negative.
+pub fn assert_sane(s: &nusselt_core::solver::ProgressiveSolver) {
+    let name = &s.scene().name;
+    for ambient in [false, true] {
+        for (j, b) in s.element_radiance(ambient).iter().enumerate() {
+            assert!(
+                b.is_finite() && b.min_element() >= 0.0,
+                "{name}: element {j} radiance {b} (ambient {ambient})"
+            );
+        }
+    }
+    for (j, h) in s.incident().iter().enumerate() {
+        assert!(
+            h.is_finite() && h.min_element() >= 0.0,
+            "{name}: element {j} incident {h}"
+        );
+    }
+    let vertex_radiance = s.mesh().vertex_values(&s.element_radiance(true));
+    for (v, b) in vertex_radiance.iter().enumerate() {
+        assert!(
+            b.is_finite() && b.min_element() >= 0.0,
+            "{name}: vertex {v} radiance {b:?}"
+        );
+    }
+}
+
+/// Unshot power Σ ΔB·A over patches, per channel.
+pub fn unshot_power(s: &nusselt_core::solver::ProgressiveSolver) -> DVec3 {
+    s.unshot()
+        .iter()
+        .zip(&s.mesh().patches)
+        .map(|(u, p)| *u * p.area)
+        .sum()
+}

@@ -1,0 +1,100 @@
+//! The panels' actions, handled in one place: solver commands, file dialogs, exports and
+//! the material editor's edits.
+
+use super::*;
+
+impl ViewerApp {
+    /// Applies one user action: the single place where UI input becomes a change.
+    pub(crate) fn handle(&mut self, ctx: &egui::Context, action: Action) {
+        match action {
+            Action::Solver(c) => self.solver.queue(c),
+            Action::Remesh(size) => self.solver.queue(Command::Remesh(size)),
+            Action::SetMethod(m) => self.solver.queue(Command::SetMethod(m)),
+            Action::SetSolver(k) => self.solver.queue(Command::SetSolver(k)),
+            Action::Teach(t) => self.solver.queue(Command::Teach(t)),
+            Action::OpenDialog => self.open_dialog(
+                ctx,
+                Request::new(Purpose::Open, ("Wavefront OBJ", "obj"), false),
+            ),
+            Action::Open(p) => {
+                self.message(false, format!("opening {}", p.display()));
+                self.solver.queue(Command::LoadPath(p));
+            }
+            Action::OpenBuiltin(name) => match Scene::builtin(&name, &LoadOptions::default()) {
+                Ok(s) => self.solver.queue(Command::LoadScene(Box::new(s))),
+                Err(e) => self.message(true, e.to_string()),
+            },
+            Action::ClearRecent => self.panel.recent.clear(),
+            Action::SaveMtl => {
+                if let Some(s) = self.snapshot.clone() {
+                    let path = match &s.scene_source {
+                        Some(obj) => export::mtl_path_for(obj),
+                        None => PathBuf::from(format!("{}.mtl", s.scene_name)),
+                    };
+                    self.save_mtl(&s, &path);
+                }
+            }
+            Action::SaveMtlAs => {
+                if let Some(s) = self.snapshot.clone() {
+                    let mut r = Request::new(Purpose::SaveMtlAs, ("MTL", "mtl"), true);
+                    r.directory = s
+                        .scene_source
+                        .as_deref()
+                        .and_then(Path::parent)
+                        .map(Path::to_path_buf);
+                    r.file_name = Some(format!("{}.mtl", s.scene_name));
+                    self.open_dialog(ctx, r);
+                }
+            }
+            Action::ResetEdits => {
+                self.solver.queue(Command::ResetMaterials);
+                self.resync_editor_after = Some(self.snapshot.as_ref().map_or(0, |s| s.seq));
+            }
+            Action::ExportPly => {
+                if let Some(s) = self.snapshot.clone() {
+                    let mut r = Request::new(Purpose::ExportPly, ("PLY", "ply"), true);
+                    r.file_name = Some(format!("{}.ply", s.scene_name));
+                    self.open_dialog(ctx, r);
+                }
+            }
+            Action::ExportPng => {
+                let mut r = Request::new(Purpose::ExportPng, ("PNG", "png"), true);
+                r.file_name = Some("viewport.png".into());
+                self.open_dialog(ctx, r);
+            }
+            Action::FrameScene => {
+                // The chosen first view: the scene's own camera, or the view that sees the
+                // most lit surface (render::view).
+                if let Some(s) = &self.snapshot {
+                    self.camera = Some(OrbitCamera::from_camera(
+                        &s.scene_camera,
+                        s.geometry.bounds_min,
+                        s.geometry.bounds_max,
+                    ));
+                }
+            }
+            Action::ResetView => {
+                if let Some(s) = &self.snapshot {
+                    self.camera = Some(OrbitCamera::from_camera(
+                        &s.scene_camera,
+                        s.geometry.bounds_min,
+                        s.geometry.bounds_max,
+                    ));
+                }
+            }
+            Action::Select(p) => {
+                self.panel.selection = p;
+                self.panel.editor = None;
+            }
+            Action::Edit { material, kd, ke } => {
+                self.edit_latency.sent(material, kd, ke);
+                self.solver.queue(Command::SetMaterial {
+                    material: nusselt_core::scene::MaterialId(material),
+                    reflectance: kd,
+                    emission: ke,
+                });
+            }
+            Action::Quit => ctx.send_viewport_cmd(egui::ViewportCommand::Close),
+        }
+    }
+}

@@ -1,0 +1,45 @@
+//! What the ray-traced view renders (`viewer::raytrace`), taken from the solver: the scene,
+//! the mesh and the element radiance, copied when the solution changed, at most every
+//! [`RUNNING_INTERVAL`] while the solve runs (a copy of the mesh each time) and at once
+//! when it stops.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use crate::raytrace::RenderInput;
+
+use super::worker::Worker;
+
+/// While the solver steps, the view follows the solution this often.
+const RUNNING_INTERVAL: Duration = Duration::from_secs(2);
+
+impl Worker {
+    pub(super) fn refresh_ray_input(&mut self) {
+        let (true, Some(solver), Some(geometry)) =
+            (self.ray_input_on, &self.solver, &self.geometry)
+        else {
+            return;
+        };
+        let key = (solver.steps(), geometry.id, self.reflectance_rev);
+        if self.ray_input_key == Some(key) {
+            return;
+        }
+        if self.wants_to_step()
+            && self
+                .ray_input_at
+                .is_some_and(|t| t.elapsed() < RUNNING_INTERVAL)
+        {
+            return;
+        }
+        let problem = solver.problem();
+        self.ray_input = Some(Arc::new(RenderInput {
+            seq: self.seq + 1,
+            scene: problem.scene.clone(),
+            config: problem.config.clone(),
+            mesh: problem.mesh.clone(),
+            radiance: solver.element_radiance(true),
+        }));
+        self.ray_input_key = Some(key);
+        self.ray_input_at = Some(Instant::now());
+    }
+}

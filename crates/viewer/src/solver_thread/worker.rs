@@ -1,0 +1,471 @@
+//! The solver thread's side: a [`Worker`] owns the solver (a `Box<dyn Solver>` of the
+//! chosen [`SolverKind`]), applies [`Command`]s, steps it while there is something to do,
+//! and publishes [`Snapshot`]s. Changing the mesh, the form-factor method or the solver
+//! goes through [`Solver::into_parts`] (in `switch.rs`).
+
+use std::panic::AssertUnwindSafe;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TryRecvError, TrySendError};
+use std::time::{Duration, Instant};
+
+use nusselt_core::scene::{LoadOptions, Material, MaterialId, Rgb, Scene};
+use nusselt_core::solver::{Problem, Solver, SolverConfig, SolverKind};
+
+use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, vertex_reflectance};
+use super::super::teach::compare::{CompareDetail, CompareWork};
+use super::super::teach::hemicube::{HemicubeDetail, HemicubeRequest};
+use super::super::teach::matrix::{MatrixDetail, MatrixWork};
+use super::super::teach::meshing::{MeshDetail, MeshJob};
+use super::super::teach::nusselt::{NusseltDetail, NusseltRequest};
+use super::super::teach::step::{Before, StepDetail};
+use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
+
+pub(super) struct Worker {
+    pub(super) rx: Receiver<Command>,
+    pub(super) events: SyncSender<Event>,
+    pub(super) cancel: Arc<AtomicBool>,
+    pub(super) latest: Arc<Latest<Arc<Snapshot>>>,
+    pub(super) waker: Waker,
+    pub(super) solver: Option<Box<dyn Solver>>,
+    /// The kind of `solver` (and of the next one built, on a load).
+    pub(super) kind: SolverKind,
+    /// The solver's last step found nothing to do (not cancelled): stepping stops until a
+    /// command changes something.
+    pub(super) exhausted: bool,
+    pub(super) loaded_materials: Arc<Vec<Material>>,
+    pub(super) geometry: Option<Arc<Geometry>>,
+    pub(super) reflectance: Arc<Vec<[f32; 3]>>,
+    pub(super) reflectance_rev: u64,
+    pub(super) next_id: u64,
+    pub(super) scene_rev: u64,
+    /// The first view of the current scene (`render::view::default_camera`), chosen once
+    /// per load.
+    pub(super) scene_camera: nusselt_core::scene::Camera,
+    pub(super) seq: u64,
+    pub(super) playing: bool,
+    /// Single steps still to take.
+    pub(super) steps: usize,
+    pub(super) stop_unshot: f64,
+    pub(super) max_shots: Option<usize>,
+    pub(super) config: SolverConfig,
+    pub(super) history: Arc<Vec<HistoryPoint>>,
+    /// Solve time since the last (re)start, pauses excluded.
+    pub(super) elapsed: Duration,
+    pub(super) last_publish: Option<Instant>,
+    /// Something changed since the last publish.
+    pub(super) dirty: bool,
+    /// A material edit was applied and not yet published.
+    pub(super) edit_unpublished: bool,
+    pub(super) edit_published: Option<Instant>,
+    /// Set by [`Command::PanicOnNextShot`].
+    pub(super) panic_on_next_shot: Option<String>,
+    /// Teaching mode (`teach.rs`): record single steps, the last one recorded, the
+    /// hemicube asked for and the one computed.
+    pub(super) record_steps: bool,
+    pub(super) step_detail: Option<Arc<StepDetail>>,
+    pub(super) hemicube_request: Option<HemicubeRequest>,
+    pub(super) hemicube_detail: Option<Arc<HemicubeDetail>>,
+    /// What `hemicube_detail` was computed for: request, last shooter, mesh.
+    pub(super) hemicube_key: Option<(HemicubeRequest, Option<u32>, u64)>,
+    pub(super) hemicube_drawn: Option<Instant>,
+    /// The Nusselt view asked for, the one computed, and for what (request, shooter, mesh).
+    pub(super) nusselt_request: Option<NusseltRequest>,
+    pub(super) nusselt_detail: Option<Arc<NusseltDetail>>,
+    pub(super) nusselt_key: Option<(NusseltRequest, Option<u32>, u64)>,
+    /// The matrix view's rows, filled while idle, and what was last published of it.
+    pub(super) matrix_work: Option<MatrixWork>,
+    pub(super) matrix_detail: Option<Arc<MatrixDetail>>,
+    pub(super) matrix_published: Option<(Instant, usize, Option<u32>)>,
+    /// Shooting vs gathering: the comparison run, and what was last published of it.
+    pub(super) compare_work: Option<CompareWork>,
+    pub(super) compare_detail: Option<Arc<CompareDetail>>,
+    /// Uniform vs adaptive meshing: the job computing it, and its result.
+    pub(super) mesh_job: Option<MeshJob>,
+    pub(super) mesh_detail: Option<Arc<MeshDetail>>,
+    /// The ray-traced view is on: publish its input (`ray_input.rs`), taken for this
+    /// (steps, mesh, materials) at this time.
+    pub(super) ray_input_on: bool,
+    pub(super) ray_input: Option<Arc<crate::raytrace::RenderInput>>,
+    pub(super) ray_input_key: Option<(usize, u64, u64)>,
+    pub(super) ray_input_at: Option<Instant>,
+    /// Adaptive refinement in progress (`adapt.rs`).
+    pub(super) adapting: Option<super::adapt::Adapting>,
+}
+
+enum Flow {
+    Continue,
+    Quit,
+}
+
+impl Worker {
+    pub(super) fn new(
+        rx: Receiver<Command>,
+        events: SyncSender<Event>,
+        cancel: Arc<AtomicBool>,
+        latest: Arc<Latest<Arc<Snapshot>>>,
+        waker: Waker,
+        config: ThreadConfig,
+    ) -> Worker {
+        Worker {
+            rx,
+            events,
+            cancel,
+            latest,
+            waker,
+            solver: None,
+            kind: config.kind,
+            exhausted: false,
+            loaded_materials: Arc::new(Vec::new()),
+            geometry: None,
+            reflectance: Arc::new(Vec::new()),
+            reflectance_rev: 0,
+            next_id: 1,
+            scene_rev: 0,
+            scene_camera: nusselt_core::scene::Camera::cornell(),
+            seq: 0,
+            playing: config.play,
+            steps: 0,
+            stop_unshot: config.stop_unshot,
+            max_shots: config.max_shots,
+            config: config.solver,
+            history: Arc::new(Vec::new()),
+            elapsed: Duration::ZERO,
+            last_publish: None,
+            dirty: false,
+            edit_unpublished: false,
+            edit_published: None,
+            panic_on_next_shot: None,
+            record_steps: false,
+            step_detail: None,
+            hemicube_request: None,
+            hemicube_detail: None,
+            hemicube_key: None,
+            hemicube_drawn: None,
+            nusselt_request: None,
+            nusselt_detail: None,
+            nusselt_key: None,
+            matrix_work: None,
+            matrix_detail: None,
+            matrix_published: None,
+            compare_work: None,
+            compare_detail: None,
+            mesh_job: None,
+            mesh_detail: None,
+            ray_input_on: false,
+            ray_input: None,
+            ray_input_key: None,
+            ray_input_at: None,
+            adapting: None,
+        }
+    }
+
+    pub(super) fn run(mut self, scene: Scene) {
+        let config = self.config.clone();
+        self.guarded(Some(scene.name.clone()), true, |w| w.install(scene, config));
+        loop {
+            self.cancel.store(false, Ordering::Relaxed);
+            // Drain what is queued; block only when there is nothing to shoot.
+            loop {
+                let command = if self.wants_to_shoot() || self.teach_work_pending() {
+                    match self.rx.try_recv() {
+                        Ok(c) => c,
+                        Err(TryRecvError::Empty) => break,
+                        Err(TryRecvError::Disconnected) => return,
+                    }
+                } else {
+                    if self.dirty {
+                        self.guarded(None, false, Self::publish);
+                    }
+                    // Wake up now and then even if idle so a lost waker cannot stall
+                    // anything; no work is done on these wake-ups.
+                    let wait = self.teach_wait().unwrap_or(Duration::from_millis(500));
+                    match self.rx.recv_timeout(wait) {
+                        Ok(c) => c,
+                        Err(RecvTimeoutError::Timeout) => {
+                            // The meshing view's job reports its stage.
+                            self.dirty |= self.mesh_job.is_some();
+                            continue;
+                        }
+                        Err(RecvTimeoutError::Disconnected) => return,
+                    }
+                };
+                let (scene, loads) = match &command {
+                    Command::LoadPath(p) => (Some(p.display().to_string()), true),
+                    Command::LoadScene(s) => (Some(s.name.clone()), true),
+                    _ => (None, false),
+                };
+                if let Some(Flow::Quit) = self.guarded(scene, loads, |w| w.apply(command)) {
+                    return;
+                }
+            }
+            if self.dirty && self.due() {
+                self.guarded(None, false, Self::publish);
+            }
+            self.guarded(None, false, Self::shoot_once);
+            self.guarded(None, false, Self::adapt_once);
+            self.guarded(None, false, Self::teach_work_once);
+        }
+    }
+
+    /// Runs `work` (shooting, re-meshing, loading, publishing: everything that calls into
+    /// the solver) and turns a panic in it into [`Event::Failed`] naming `scene` (default:
+    /// the current one). The solver is dropped, since its state after a panic is unknown,
+    /// unless `loads` and the panic came before the new scene was installed (the current
+    /// one is then untouched and stays, as for a load error). Nothing is published after a
+    /// drop, so the UI keeps the last snapshot; the thread lives on for new commands.
+    fn guarded<T>(
+        &mut self,
+        scene: Option<String>,
+        loads: bool,
+        work: impl FnOnce(&mut Self) -> T,
+    ) -> Option<T> {
+        let scene_rev = self.scene_rev;
+        let scene = scene.unwrap_or_else(|| {
+            self.solver.as_ref().map_or_else(
+                || "no scene".to_string(),
+                |s| s.problem().scene.name.clone(),
+            )
+        });
+        match std::panic::catch_unwind(AssertUnwindSafe(|| work(self))) {
+            Ok(v) => Some(v),
+            Err(payload) => {
+                let message = payload
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| payload.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "(no message)".to_string());
+                if !(loads && self.scene_rev == scene_rev) {
+                    self.solver = None;
+                    self.geometry = None;
+                    self.playing = false;
+                    self.steps = 0;
+                    self.dirty = false;
+                }
+                self.send_event(Event::Failed(format!(
+                    "solver failed on {scene}: {message}"
+                )));
+                None
+            }
+        }
+    }
+
+    fn wants_to_shoot(&self) -> bool {
+        let Some(solver) = &self.solver else {
+            return false;
+        };
+        (self.playing || self.steps > 0)
+            && !self.exhausted
+            && solver.residual() > self.stop_unshot
+            && self.max_shots.is_none_or(|m| solver.steps() < m)
+    }
+
+    fn due(&self) -> bool {
+        self.last_publish
+            .is_none_or(|t| t.elapsed() >= PUBLISH_INTERVAL)
+    }
+
+    fn shoot_once(&mut self) {
+        if !self.wants_to_shoot() {
+            return;
+        }
+        if let Some(message) = self.panic_on_next_shot.take() {
+            panic!("{message}");
+        }
+        let Some(solver) = self.solver.as_mut() else {
+            return;
+        };
+        // Teaching mode records single steps (not a running solve: it costs a copy of the
+        // state and a row).
+        let before = (self.record_steps && !self.playing)
+            .then(|| Before::take(solver.as_ref()))
+            .flatten();
+        let start = Instant::now();
+        let stepped = solver.step(&self.cancel);
+        self.elapsed += start.elapsed();
+        if stepped {
+            self.step_detail = match (before, &self.geometry) {
+                (Some(b), Some(g)) => {
+                    crate::teach::step::capture(b, solver.as_ref(), g).map(Arc::new)
+                }
+                _ => None,
+            };
+        }
+        if !stepped {
+            // Cancelled (a command is waiting: nothing changed), or nothing left to do.
+            if !self.cancel.load(Ordering::Relaxed) {
+                self.exhausted = true;
+                self.dirty = true;
+            }
+            return;
+        }
+        self.steps = self.steps.saturating_sub(1);
+        let point = HistoryPoint {
+            seconds: self.elapsed.as_secs_f64(),
+            steps: solver.steps(),
+            residual: solver.residual(),
+            ambient: solver.ambient_mean(),
+        };
+        let history = Arc::make_mut(&mut self.history);
+        if history.len() >= HISTORY_CAPACITY {
+            // Keep every other point: the plot is log-scaled in time anyway.
+            let mut keep = false;
+            history.retain(|_| {
+                keep = !keep;
+                keep
+            });
+        }
+        history.push(point);
+        self.dirty = true;
+        // The first steps and single steps show at once; later ones at most every
+        // PUBLISH_INTERVAL, or when the solve just ended.
+        if point.steps <= 3 || self.due() || !self.wants_to_shoot() {
+            self.publish();
+        }
+    }
+
+    pub(super) fn wants_to_step(&self) -> bool {
+        self.wants_to_shoot()
+    }
+
+    pub(super) fn send_event(&self, event: Event) {
+        if let Err(TrySendError::Full(e)) = self.events.try_send(event) {
+            eprintln!("viewer: dropped a notice, the UI is not reading them: {e:?}");
+        }
+    }
+
+    /// Replaces the solver with one of the current kind for `scene`; on error the old one
+    /// stays. A kind that refuses the new problem (its matrix over the memory budget)
+    /// falls back to shooting, with an error event saying why.
+    fn install(&mut self, scene: Scene, config: SolverConfig) {
+        let name = scene.name.clone();
+        let source = scene.source.clone();
+        match Problem::new(scene, config.clone()) {
+            Ok(problem) => {
+                self.loaded_materials = Arc::new(problem.scene.materials.clone());
+                self.scene_camera = nusselt_core::render::view::default_camera(&problem.scene);
+                self.config = config;
+                self.solver = None;
+                self.build(problem, Default::default());
+                self.scene_rev += 1;
+                self.new_geometry();
+                self.send_event(Event::Loaded { name, source });
+            }
+            Err(e) => self.send_event(Event::Error(format!("{name}: {e}"))),
+        }
+        self.dirty = true;
+    }
+
+    pub(super) fn new_geometry(&mut self) {
+        let Some(solver) = &self.solver else { return };
+        let g = Geometry::from_mesh(self.next_id, &solver.problem().mesh);
+        self.next_id += 1;
+        self.reflectance = Arc::new(vertex_reflectance(&g, &solver.problem().scene.materials));
+        self.reflectance_rev += 1;
+        self.geometry = Some(Arc::new(g));
+    }
+
+    pub(super) fn restart_clock(&mut self) {
+        self.step_detail = None;
+        self.elapsed = Duration::ZERO;
+        self.history = Arc::new(Vec::new());
+        self.dirty = true;
+    }
+
+    fn apply(&mut self, command: Command) -> Flow {
+        // Whatever the command, the solver may have something to do again.
+        self.exhausted = false;
+        match command {
+            Command::Quit => return Flow::Quit,
+            Command::PanicOnNextShot(message) => self.panic_on_next_shot = Some(message),
+            Command::Play => self.playing = true,
+            Command::Pause => {
+                self.playing = false;
+                self.steps = 0;
+            }
+            Command::Step => {
+                self.playing = false;
+                self.steps += 1;
+            }
+            Command::Reset => {
+                if let Some(s) = self.solver.as_mut() {
+                    s.reset();
+                    self.restart_clock();
+                }
+            }
+            Command::Remesh(size) => self.remesh(size),
+            Command::SetMaterial {
+                material,
+                reflectance,
+                emission,
+            } => self.set_material(material, Rgb::from(reflectance), Rgb::from(emission)),
+            Command::ResetMaterials => {
+                let loaded = self.loaded_materials.clone();
+                for (i, m) in loaded.iter().enumerate() {
+                    let current = self
+                        .solver
+                        .as_ref()
+                        .and_then(|s| s.problem().scene.materials.get(i).cloned());
+                    if current.is_some_and(|c| c != *m) {
+                        self.set_material(MaterialId(i as u32), m.reflectance, m.emission);
+                    }
+                }
+            }
+            Command::SetMethod(method) => self.set_method(method),
+            Command::SetSolver(kind) => self.set_solver(kind),
+            Command::Teach(t) => self.teach(t),
+            Command::Adapt(t) => self.start_adapting(t),
+            Command::RayTraced(on) => {
+                self.ray_input_on = on;
+                if !on {
+                    self.ray_input = None;
+                    self.ray_input_key = None;
+                }
+            }
+            Command::LoadPath(path) => match Scene::load_obj(&path, &LoadOptions::default()) {
+                Ok(scene) => self.load(scene),
+                Err(e) => self.send_event(Event::Error(e.to_string())),
+            },
+            Command::LoadScene(scene) => self.load(*scene),
+            Command::SetStopThreshold(t) => {
+                if t.is_finite() && t >= 0.0 {
+                    self.stop_unshot = t;
+                    self.dirty = true;
+                } else {
+                    self.send_event(Event::Error(format!(
+                        "stop threshold must be a finite number >= 0, got {t}"
+                    )));
+                }
+            }
+        }
+        self.dirty = true;
+        Flow::Continue
+    }
+
+    fn load(&mut self, scene: Scene) {
+        // A new scene gets its own default element size, the other settings stay.
+        let config = SolverConfig {
+            element_size: None,
+            patch_size: None,
+            ..self.config.clone()
+        };
+        self.install(scene, config);
+    }
+
+    fn set_material(&mut self, id: MaterialId, reflectance: Rgb, emission: Rgb) {
+        let Some(s) = self.solver.as_mut() else {
+            return;
+        };
+        match s.set_material(id, reflectance, emission) {
+            Ok(()) => {
+                self.edit_unpublished = true;
+                if let Some(g) = &self.geometry {
+                    self.reflectance =
+                        Arc::new(vertex_reflectance(g, &s.problem().scene.materials));
+                    self.reflectance_rev += 1;
+                }
+            }
+            Err(e) => self.send_event(Event::Error(format!("edit: {e}"))),
+        }
+    }
+}
