@@ -285,7 +285,7 @@ pub fn reference(
 }
 
 impl PathTracer<'_> {
-    /// Renders an image with `settings.spp` paths per pixel (all cores), as [`reference`].
+    /// Renders an image with `settings.spp` paths per pixel (all cores), as [`reference()`].
     pub fn render(&self, settings: &RenderSettings, progress: &(dyn Fn(usize) + Sync)) -> Image {
         let pt = self;
         let (w, h) = (settings.width, settings.height);

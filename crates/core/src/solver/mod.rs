@@ -41,12 +41,12 @@ pub use rows::RowCache;
 
 #[derive(Clone, Debug)]
 pub struct SolverConfig {
-    /// Element edge length; `None` = [`mesh::default_element_size`].
+    /// Element edge length; `None` = [`crate::mesh::default_element_size`].
     pub element_size: Option<f64>,
-    /// Patch (shooter) edge length; `None` = [`mesh::default_patch_size`].
+    /// Patch (shooter) edge length; `None` = [`crate::mesh::default_patch_size`].
     pub patch_size: Option<f64>,
     /// Element budget for the element size when `element_size` is `None`; `None` =
-    /// [`mesh::default_element_size`].
+    /// [`crate::mesh::default_element_size`].
     pub max_elements: Option<usize>,
     pub method: FormFactorMethod,
     pub formfactor: FormFactorParams,
@@ -64,7 +64,7 @@ pub struct SolverConfig {
     /// emitted radiosity (`--link-tolerance`): smaller gives more links and a finer answer.
     pub link_tolerance: f64,
     /// A priori discontinuity meshing: the lights' shadow outlines become element edges
-    /// (`--discontinuity`, [`mesh::discontinuity`]).
+    /// (`--discontinuity`, [`crate::mesh::discontinuity`]).
     pub discontinuity: bool,
     /// The rasteriser of `gpu-hemicube` rows (`nusselt_gpu::GpuHemicube`); required by that
     /// method, unused by the others.

@@ -23,7 +23,7 @@ impl ProgressiveSolver {
         r * unshot / self.total_area
     }
 
-    /// The regional ambient term per patch ([`super::ambient`]): the light still to arrive
+    /// The regional ambient term per patch ([`crate::solver::ambient`]): the light still to arrive
     /// per unit reflectance. Builds the regions on first use.
     pub fn regional_ambient(&self) -> Vec<Rgb> {
         let regional = self
