@@ -1,5 +1,5 @@
 """Face averages of the ceiling-lit unit cube (`--builtin cube`), default flags against a
-fine exact-form-factor solve: issue 11's "unit cube" figure.
+fine exact-form-factor solve: the "unit cube" figure of the README.
 
     python3 scripts/cube_check.py target/release/nusselt [rho]
 

@@ -2,7 +2,7 @@
 """Writes assets/tworooms.obj and .mtl: two 4 x 2.5 x 4 m rooms side by side, joined by a
 door left ajar (a 0.1 m x 2 m gap in a 0.1 m thick wall), the light (1 x 1 m, radiance 10)
 in the ceiling of the left room. The right room is lit only through the gap: the scene of
-issue 12 where a global ambient term shows the unlit room far too bright mid-solve.
+the case where a global ambient term shows the unlit room far too bright mid-solve.
 
 Faces are one-sided with normals into the rooms (counter-clockwise seen from inside)."""
 import os

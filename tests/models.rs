@@ -1,4 +1,4 @@
-//! The model corpus of issue 11 (tests/data/models/, written by scripts/make_models.py),
+//! The model corpus (tests/data/models/, written by scripts/make_models.py),
 //! a large generated model, and a property test on random triangle soups.
 //!
 //! Every model must load with the default options, converge to `--unshot 1e-3`, have no

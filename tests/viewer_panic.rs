@@ -1,4 +1,4 @@
-//! A panic in the solver does not take the viewer's solver thread down (issue 11, defence in
+//! A panic in the solver does not take the viewer's solver thread down (defence in
 //! depth): it is reported as "solver failed on <scene>: <message>", nothing more is
 //! published for the broken solve (the UI keeps its last image), and the thread still
 //! loads another scene and shoots it. The panic is injected through the hidden

@@ -1,5 +1,5 @@
 //! `nusselt bench --only targets`: the whole-process targets of the Cornell box at 256²
-//! (issue 13: 5 % image error in ≤ 0.15 s, 2 % in ≤ 2 s, 1 % in ≤ 18 s), stated side by side
+//! (5 % image error in ≤ 0.15 s, 2 % in ≤ 2 s, 1 % in ≤ 18 s), stated side by side
 //! with the path tracer on the same machine.
 //!
 //! Each configuration is the `nusselt render` command itself, run as a child process from

@@ -1,4 +1,4 @@
-//! Hard cases of issue 11 (scenes in tests/data/hard/, written by scripts/make_models.py).
+//! Hard cases (scenes in tests/data/hard/, written by scripts/make_models.py).
 //!
 //! Each case asserts: no NaN or negative radiance, the power balance (closed scenes:
 //! emitted = absorbed + still-unshot power; open ones: emitted = absorbed + unshot +

@@ -446,7 +446,7 @@ const DEGENERATE_HOLE: f64 = 1e-12;
 /// and is not subtracted, since its edges have no reliable outward side. Measured against
 /// the hole's own size instead, a point-like shadow (all edges ~1e-12 of the piece) kept
 /// its edges, their outward sides pointed anywhere, and the "outside" parts overlapped: the
-/// piece came back up to 3 times over (issue 11: a light's exact row at scale 1e4 was twice
+/// piece came back up to 3 times over (a light's exact row at scale 1e4 was twice
 /// the value at scale 1, 0.000555 vs 0.000287, the same blockers in other rounding).
 fn subtract_convex(piece: &[DVec3], hole: &[DVec3], sn: DVec3) -> Vec<Vec<DVec3>> {
     let k = hole.len();

@@ -288,7 +288,7 @@ pub fn occluded_point_to_polygon(
 /// whose edge lies in the receiver's plane (a wall patch starting at the height of a box
 /// top) was clipped or not depending on the last bit of a coordinate, and the clipped
 /// polygon's sampler places its stratified points differently, so the same scene in another
-/// unit got other shadow-ray samples (issue 11: 1e-3 vs 1 differed by 25 % in such rows).
+/// unit got other shadow-ray samples (1e-3 vs 1 differed by 25 % in such rows).
 pub fn part_above(poly: &[DVec3], x: DVec3, nx: DVec3) -> Cow<'_, [DVec3]> {
     if poly.iter().all(|v| {
         let d = *v - x;

@@ -9,7 +9,7 @@
 //! (centre at the origin, diagonal 1), so the `f32` rounding of a vertex, the tree and every
 //! hit decision are the same whatever the scene's unit: a scene at 1e-3 or 1e4 times the
 //! size gives the same answers, not answers that differ wherever `f32` rounds `0.45` and
-//! `0.00045` differently (issue 11: a visibility decision flipped between scales).
+//! `0.00045` differently (a visibility decision flipped between scales).
 
 use super::{Aabb, Ray, shaft::Shaft};
 use glam::{DVec3, Vec3};
@@ -233,7 +233,7 @@ impl Bvh {
             // The hit found in f32, its parameters recomputed in f64 from the same stored
             // triangle: shading interpolates with (u, v), and f32 barycentrics carry ~1e-7
             // of noise (more at grazing angles) that depends on the last bit of the ray,
-            // so the same view in another unit was shaded 1e-6 differently (issue 11).
+            // so the same view in another unit was shaded 1e-6 differently.
             let tri = &self.tris[k as usize];
             let (o64, d64) = (
                 (ray.origin - self.origin) / self.scale,

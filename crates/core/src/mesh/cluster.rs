@@ -84,7 +84,7 @@ pub(super) fn cluster_patch(
     }
     // The hull starts at its lexicographically smallest point, which round-off decides
     // among points of equal coordinates (another unit, another start): start at a vertex
-    // that does not depend on it, so the shooter's samplers do not either (issue 11).
+    // that does not depend on it, so the shooter's samplers do not either.
     let start = polygon::canonical_start(&polygon);
     polygon.rotate_left(start);
     let mut bounds: Vec<DVec3> = hull.iter().map(|&p| lift(p, lo)).collect();

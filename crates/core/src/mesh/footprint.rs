@@ -5,7 +5,7 @@
 //! A floor patch that straddles the footprint's outline shoots its *area-mean* unshot
 //! radiance from its whole polygon, so the half under the box lights the box's bottom at a
 //! form factor near 1, and the bottom passes that light back to the floor under it: 19.7 %
-//! of the floor's mean radiance under boxes lifted by 1e-2, 1e-4 or 1e-6 (issue 11), with
+//! of the floor's mean radiance under boxes lifted by 1e-2, 1e-4 or 1e-6, with
 //! every form factor right. Cutting each planar unit along the projected outline of every
 //! facing face closer than a patch makes no patch (and no element) straddle the line.
 

@@ -1,4 +1,4 @@
-//! The built-in `gallery`: a large generated scene for scale benchmarks (issue 15). A 6 × 3 ×
+//! The built-in `gallery`: a large generated scene for scale benchmarks. A 6 × 3 ×
 //! 5 m room lit by a ceiling panel, a table, two cabinets, and on a plinth a tessellated
 //! statue: a bumpy sphere of `2 · STATUE_U · STATUE_V` triangles (100,000), so that the
 //! input has more than 100 k triangles, most of them small, curved and of one material,

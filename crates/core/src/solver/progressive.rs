@@ -48,7 +48,7 @@ mod solver_impl;
 /// shot and the first in index order wins. Symmetric patches have equal powers up to the
 /// round-off of their coordinates, which differs with the scene's unit: breaking such ties
 /// by that round-off made the same scene at scale 1, 1e-3 and 1e4 shoot in different orders
-/// (issue 11: a different shot count at `--unshot 1e-3` and images 1.8e-4 apart).
+/// (a different shot count at `--unshot 1e-3` and images 1.8e-4 apart).
 const SHOOTER_TIE: f64 = 1e-9;
 
 /// A progressive-refinement radiosity solution of one scene (see the module docs).
