@@ -98,13 +98,13 @@ mod tests {
             base.base_patch,
             (0..base.patches.len() as u32).collect::<Vec<_>>()
         );
-        let same = Mesh::build_refined(&scene, 60.0, 120.0, &[]).expect("mesh");
+        let same = Mesh::build_refined(&scene, 60.0, 120.0, &[], false).expect("mesh");
         assert_eq!(same.elements.len(), base.elements.len());
         // Refine every third base patch once.
         let levels: Vec<u8> = (0..base.patches.len())
             .map(|p| u8::from(p % 3 == 0))
             .collect();
-        let fine = Mesh::build_refined(&scene, 60.0, 120.0, &levels).expect("mesh");
+        let fine = Mesh::build_refined(&scene, 60.0, 120.0, &levels, false).expect("mesh");
         let mut area = vec![0.0; base.patches.len()];
         let mut count = vec![0usize; base.patches.len()];
         for (p, patch) in fine.patches.iter().enumerate() {
@@ -178,7 +178,7 @@ mod tests {
         let scene = cornell();
         let base = Mesh::build_with(&scene, 60.0, 120.0).expect("mesh");
         let levels = vec![2; base.patches.len()];
-        let fine = Mesh::build_refined(&scene, 60.0, 120.0, &levels).expect("mesh");
+        let fine = Mesh::build_refined(&scene, 60.0, 120.0, &levels, false).expect("mesh");
         // Flat: every patch goes back a level (one per pass).
         let flat = vec![Rgb::ONE; fine.elements.len()];
         assert!(

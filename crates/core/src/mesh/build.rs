@@ -65,12 +65,15 @@ impl Mesh {
     /// `2^level` times smaller, each with elements `2^level` times smaller; a cluster of
     /// facets keeps one patch and gets the smaller elements. [`Mesh::base_patch`] maps the
     /// result back, so levels computed from a solution on one mesh apply to the next
-    /// ([`super::adaptive`]).
+    /// ([`super::adaptive`]). `discontinuity` must be what the base mesh was built with
+    /// ([`Mesh::build_with_discontinuities`]): the base patches of a cut mesh are the cut
+    /// pieces, and the levels are indexed by them.
     pub fn build_refined(
         scene: &Scene,
         element_size: f64,
         patch_size: f64,
         levels: &[u8],
+        discontinuity: bool,
     ) -> Result<Mesh, MeshError> {
         Mesh::build_from(
             scene,
@@ -78,7 +81,7 @@ impl Mesh {
             element_size,
             patch_size,
             levels,
-            false,
+            discontinuity,
         )
     }
 

@@ -89,6 +89,7 @@ fn refine_within(
             solved.mesh.element_size,
             solved.mesh.patch_size,
             &levels,
+            solved.config.discontinuity,
         )?;
         let refined = Problem::with_mesh(solved.scene.clone(), solved.config.clone(), mesh)?;
         solver = match solver.carry_to(refined, &never) {
@@ -140,5 +141,31 @@ mod tests {
             refine_adaptively(cornell(), SolverKind::Jacobi, 0.1, 1, 1e-3).expect("refined");
         assert!(refined.problem().mesh.elements.len() > cornell().mesh.elements.len());
         assert_eq!(refined.steps(), 0);
+    }
+
+    /// With discontinuity meshing the base patches are the faces cut along the shadow
+    /// outlines; refining them must keep the cuts (the same base patches, so the levels land
+    /// on the patches they were computed for) and carry the solution, not restart from dark.
+    #[test]
+    fn discontinuity_cuts_survive_adaptive_refinement() {
+        let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+        let config = SolverConfig {
+            element_size: Some(60.0),
+            patch_size: Some(120.0),
+            discontinuity: true,
+            ..Default::default()
+        };
+        let cut = Problem::new(scene, config).expect("problem");
+        let plain = cornell();
+        let bases = cut.mesh.base_count();
+        assert!(bases > plain.mesh.base_count(), "the cuts add base patches");
+        let refined = refine_adaptively(cut, SolverKind::Shooting, 0.1, 1, 1e-3).expect("refined");
+        let mesh = &refined.problem().mesh;
+        assert_eq!(mesh.base_count(), bases, "the cut base patches are kept");
+        assert!(mesh.patches.len() > bases, "something was refined");
+        assert!(
+            refined.steps() > 0,
+            "the solution was carried, not restarted"
+        );
     }
 }

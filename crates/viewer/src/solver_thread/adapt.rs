@@ -96,6 +96,7 @@ impl Worker {
             mesh.element_size,
             mesh.patch_size,
             &next,
+            solver.problem().config.discontinuity,
         );
         let mesh = match built {
             Ok(m) => m,
