@@ -33,14 +33,7 @@ impl Mesh {
         element_size: f64,
         patch_size: f64,
     ) -> Result<Mesh, MeshError> {
-        Mesh::build_from(
-            scene,
-            &Topology::new(scene),
-            element_size,
-            patch_size,
-            &[],
-            false,
-        )
+        Mesh::build_refined(scene, element_size, patch_size, &[], false)
     }
 
     /// [`Mesh::build_with`] with the lights' shadow outlines as element edges
@@ -50,14 +43,7 @@ impl Mesh {
         element_size: f64,
         patch_size: f64,
     ) -> Result<Mesh, MeshError> {
-        Mesh::build_from(
-            scene,
-            &Topology::new(scene),
-            element_size,
-            patch_size,
-            &[],
-            true,
-        )
+        Mesh::build_refined(scene, element_size, patch_size, &[], true)
     }
 
     /// [`Mesh::build_with`], with patch `i` of that mesh (its *base* patch) refined
