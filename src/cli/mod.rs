@@ -23,7 +23,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 
-use nusselt_core::scene::{LoadOptions, Scene};
+use nusselt_core::scene::{Light, LoadOptions, Scene};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -69,6 +69,22 @@ pub struct SceneArgs {
     /// Uniform reflectance of the furnace and cube scenes.
     #[arg(long, allow_negative_numbers = true)]
     pub rho: Option<f64>,
+    /// A uniform sky of radiance R,G,B (W m⁻² sr⁻¹) from every direction in which a ray
+    /// leaves the model.
+    #[arg(long, value_name = "R,G,B", allow_hyphen_values = true)]
+    pub sky: Option<String>,
+    /// A sun arriving from direction X,Y,Z with irradiance R,G,B (W m⁻²) on a surface
+    /// facing it, optionally the angular radius of its disc in degrees (a soft shadow);
+    /// repeat for several.
+    #[arg(long, value_name = "X,Y,Z,R,G,B[,DEG]", allow_hyphen_values = true)]
+    pub sun: Vec<String>,
+    /// An isotropic point light at X,Y,Z of intensity R,G,B (W sr⁻¹); repeat for several.
+    #[arg(long, value_name = "X,Y,Z,R,G,B", allow_hyphen_values = true)]
+    pub point: Vec<String>,
+    /// Refuse a model that nothing lights instead of adding default lights (a sky and a
+    /// sun where rays leave it, else an area light under its ceiling).
+    #[arg(long)]
+    pub no_default_lights: bool,
 }
 
 /// The text of a caught panic's payload.
@@ -90,7 +106,23 @@ impl SceneArgs {
         }
     }
 
+    /// The lights given by `--sky`, `--sun` and `--point`, checked.
+    pub fn lights(&self) -> Result<Vec<Light>> {
+        let mut lights = Vec::new();
+        if let Some(sky) = &self.sky {
+            lights.push(Light::parse_sky(sky)?);
+        }
+        for sun in &self.sun {
+            lights.push(Light::parse_sun(sun)?);
+        }
+        for point in &self.point {
+            lights.push(Light::parse_point(point)?);
+        }
+        Ok(lights)
+    }
+
     pub fn load(&self) -> Result<Scene> {
+        let lights = self.lights()?;
         let opts = LoadOptions {
             two_sided: self.two_sided,
             rho: self.rho,
@@ -106,6 +138,13 @@ impl SceneArgs {
         }
         for w in &scene.warnings {
             eprintln!("warning: {w}");
+        }
+        let mut scene = scene;
+        scene.lights.extend(lights);
+        if self.no_default_lights {
+            scene.check_lit()?;
+        } else if let Some(message) = scene.add_default_lights() {
+            eprintln!("{}: {message}", self.describe());
         }
         Ok(scene)
     }

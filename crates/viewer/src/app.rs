@@ -260,6 +260,7 @@ impl ViewerApp {
     fn on_event(&mut self, e: Event) {
         match e {
             Event::Error(text) => self.message(true, text),
+            Event::Notice(text) => self.message(false, text),
             Event::Failed(text) => {
                 self.panel.solver_failure = Some(text.clone());
                 self.message(true, text);

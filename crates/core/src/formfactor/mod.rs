@@ -19,6 +19,7 @@ pub mod contour;
 pub mod exact;
 pub mod hemicube;
 pub mod hybrid;
+pub mod lights;
 mod method;
 pub mod montecarlo;
 pub mod raycast;

@@ -56,6 +56,8 @@ struct Light {
 /// The scene's lights and the visibility structure of the solve.
 pub struct DirectLight<'a> {
     lights: Vec<Light>,
+    /// The scene's suns and point lights, evaluated per pixel with one shadow ray each.
+    punctual: Vec<crate::scene::Light>,
     /// The solver's blocker BVH (ids: occluder groups).
     blockers: &'a Bvh,
     epsilon: f64,
@@ -98,17 +100,38 @@ impl<'a> DirectLight<'a> {
                 })
             })
             .collect();
+        let punctual = scene
+            .lights
+            .iter()
+            .filter(|l| !matches!(l, crate::scene::Light::Sky { .. }))
+            .copied()
+            .collect();
         Self {
             lights,
+            punctual,
             blockers,
             epsilon,
         }
     }
 
+    /// The suns' and point lights' part of [`DirectLight::incident`].
+    fn punctual_incident(&self, p: DVec3, n: DVec3, own: u32, rng: &mut Rng) -> Rgb {
+        if self.punctual.is_empty() {
+            return Rgb::ZERO;
+        }
+        let origin = p + n * self.epsilon;
+        let u = (rng.next_f64(), rng.next_f64());
+        crate::scene::lights::punctual_incident(&self.punctual, p, n, u, &|d, t| {
+            self.blockers
+                .any_hit_except(&Ray::new(origin, d), 0.0, t, [own, u32::MAX])
+        })
+    }
+
     /// `Σ_l E_l F(p → l) V_l` at a point `p` with normal `n` on a surface of occluder group
-    /// `own`: the direct irradiance over π, what `ρ` turns into radiance.
+    /// `own`, plus the suns and point lights: the direct irradiance over π, what `ρ` turns
+    /// into radiance. The sky is not in it (it stays in the interpolated solution).
     pub fn incident(&self, p: DVec3, n: DVec3, own: u32, rng: &mut Rng) -> Rgb {
-        let mut sum = Rgb::ZERO;
+        let mut sum = self.punctual_incident(p, n, own, rng);
         let origin = p + n * self.epsilon;
         for l in &self.lights {
             let f = formfactor::contour::point_to_polygon_with_normal(p, n, &l.polygon, l.normal);
@@ -206,15 +229,18 @@ pub fn element_direct(ctx: &RowContext, method: FormFactorMethod) -> Vec<Rgb> {
 
 /// The indirect part of `radiance` per element (a solution of `problem`) at the mesh's
 /// display vertices: each element's value minus its direct share `ρ_j Σ_l F_jl E_l`
-/// ([`element_direct`]), what [`render`] adds the per-pixel direct light to.
+/// ([`element_direct`]) and its share of the suns and point lights, what [`render`] adds
+/// the per-pixel direct light to.
 pub fn indirect_vertex_radiance(problem: &crate::solver::Problem, radiance: &[Rgb]) -> Vec<Rgb> {
     let direct = element_direct(&problem.row_context(), problem.config.method);
     let rho = problem.element_reflectance();
+    let punctual = &problem.external.punctual;
     let indirect: Vec<Rgb> = radiance
         .iter()
         .zip(&direct)
         .zip(&rho)
-        .map(|((b, d), r)| *b - *r * *d)
+        .enumerate()
+        .map(|(k, ((b, d), r))| *b - *r * (*d + punctual.get(k).copied().unwrap_or(Rgb::ZERO)))
         .collect();
     problem.mesh.vertex_values(&indirect)
 }

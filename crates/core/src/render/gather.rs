@@ -27,12 +27,14 @@ pub fn render_solution(
     settings: &RenderSettings,
     rays_per_pixel: u32,
 ) -> Image {
-    let emission = problem.element_emission();
+    // Only the faces' own emission is the direct term's; the sky's, suns' and points' first
+    // bounce off a surface is reflected light that the gather rays see.
     let reflected: Vec<Rgb> = radiance
         .iter()
-        .zip(&emission)
-        .map(|(b, e)| (*b - *e).max(Rgb::ZERO))
+        .zip(&problem.mesh.elements)
+        .map(|(b, e)| (*b - problem.material_of(e.patch).emission).max(Rgb::ZERO))
         .collect();
+    let sky = crate::scene::lights::sky_radiance(&problem.scene.lights);
     let vertex = problem.mesh.vertex_values(&reflected);
     let bvh = super::display_bvh(&problem.scene, &problem.mesh);
     let view = SolutionView {
@@ -50,15 +52,15 @@ pub fn render_solution(
         ..*settings
     };
     super::specular::render_pixels(&view, settings, 0x9a, |ray, rng| {
-        shade(&view, &lights, ray, per_sample, problem.epsilon, rng)
+        shade(&view, &lights, ray, per_sample, problem.epsilon, sky, rng)
     })
 }
 
-/// The reflected radiosity `B'` the ray sees (zero for the unlit back of a one-sided face
-/// or nothing).
-fn seen(view: &SolutionView, ray: &Ray) -> Rgb {
+/// The reflected radiosity `B'` the ray sees (zero for the unlit back of a one-sided face,
+/// the sky's radiance for nothing).
+fn seen(view: &SolutionView, ray: &Ray, sky: Rgb) -> Rgb {
     let Some(hit) = view.bvh.closest_hit(ray, 0.0, f64::INFINITY) else {
-        return Rgb::ZERO;
+        return sky;
     };
     if !hit.front && !view.scene.two_sided {
         return Rgb::ZERO;
@@ -74,6 +76,7 @@ fn shade(
     ray: &Ray,
     rays: u32,
     epsilon: f64,
+    sky: Rgb,
     rng: &mut Rng,
 ) -> Rgb {
     let Some(hit) = view.bvh.closest_hit(ray, 0.0, f64::INFINITY) else {
@@ -100,7 +103,7 @@ fn shade(
         let u1 = (a as f64 + rng.next_f64()) / m as f64;
         let u2 = (b as f64 + rng.next_f64()) / m as f64;
         let d = cosine_hemisphere(n, u1.min(1.0 - 1e-12), u2);
-        gathered += seen(view, &Ray::new(p + n * epsilon, d));
+        gathered += seen(view, &Ray::new(p + n * epsilon, d), sky);
     }
     material.emission + material.reflectance * (direct + gathered / rays as f64)
 }

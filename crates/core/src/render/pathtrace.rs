@@ -15,7 +15,10 @@
 //! highlights of small lights, unbiased).
 //! Glass picks reflection with the Fresnel probability, refraction otherwise (weight 1).
 //! Caustics (light through glass or off a mirror onto a diffuse surface) are found only by
-//! BSDF sampling and are noisy. Error: zero bias, noise ∝ 1/√spp.
+//! BSDF sampling and are noisy. Suns and point lights ([`crate::scene::lights`]) are
+//! found by NEE only (one shadow ray each per vertex; a delta light cannot be hit); the sky
+//! only when a ray leaves the model after a diffuse bounce (a camera ray that leaves it sees
+//! the black background, as in the radiosity passes). Error: zero bias, noise ∝ 1/√spp.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -44,6 +47,9 @@ pub struct PathTracer<'a> {
     lights: Vec<LightTri>,
     light_cdf: Vec<f64>,
     epsilon: f64,
+    /// The scene's suns and point lights, and its sky's radiance.
+    punctual: Vec<crate::scene::Light>,
+    sky: Rgb,
     /// Whether light may pass a mirror or glass after a diffuse bounce (see
     /// [`PathTracer::without_caustics`]).
     caustics: bool,
@@ -96,6 +102,13 @@ impl<'a> PathTracer<'a> {
             lights,
             light_cdf,
             epsilon,
+            punctual: scene
+                .lights
+                .iter()
+                .filter(|l| !matches!(l, crate::scene::Light::Sky { .. }))
+                .copied()
+                .collect(),
+            sky: crate::scene::lights::sky_radiance(&scene.lights),
             caustics: true,
         }
     }
@@ -117,8 +130,13 @@ impl<'a> PathTracer<'a> {
         let two_sided = self.scene.two_sided;
         // The camera, or a specular bounce: the next hit's emission is not found by NEE.
         let mut count_emission = true;
+        // Whether a diffuse bounce came before: only then does a ray that leaves see the sky.
+        let mut bounced = false;
         for depth in 0..10_000 {
             let Some(hit) = self.bvh.closest_hit(&ray, 0.0, f64::INFINITY) else {
+                if bounced {
+                    result += throughput * self.sky;
+                }
                 break;
             };
             let (face, geometric) = self.tri_face[hit.id as usize];
@@ -193,6 +211,7 @@ impl<'a> PathTracer<'a> {
                 throughput *= (wd + ws) / wd;
             }
             count_emission = false;
+            bounced = true;
             // Continue.
             throughput *= m.reflectance;
             if depth >= 3 {
@@ -229,11 +248,37 @@ impl<'a> PathTracer<'a> {
             return true;
         }
         let x = ray.at(hit.t);
-        (0..samples).any(|_| self.direct(x, n, rng).max_element() > 0.0)
+        (0..samples).any(|_| {
+            let d = cosine_hemisphere(n, rng.next_f64(), rng.next_f64());
+            let sky = self.sky.max_element() > 0.0
+                && self
+                    .bvh
+                    .closest_hit(&Ray::new(x + n * self.epsilon, d), 0.0, f64::INFINITY)
+                    .is_none();
+            sky || self.direct(x, n, rng).max_element() > 0.0
+        })
     }
 
-    /// Direct irradiance term `(1/π) ∫ Le cosθ dω` at `x` (to be multiplied by ρ).
+    /// Direct irradiance term `(1/π) ∫ Le cosθ dω` at `x` (to be multiplied by ρ): one
+    /// sample of the emitting faces, and every sun and point light.
     fn direct(&self, x: DVec3, n: DVec3, rng: &mut Rng) -> Rgb {
+        self.punctual_direct(x, n, rng) + self.face_direct(x, n, rng)
+    }
+
+    /// The suns' and point lights' part of [`PathTracer::direct`].
+    fn punctual_direct(&self, x: DVec3, n: DVec3, rng: &mut Rng) -> Rgb {
+        if self.punctual.is_empty() {
+            return Rgb::ZERO;
+        }
+        let origin = x + n * self.epsilon;
+        let u = (rng.next_f64(), rng.next_f64());
+        crate::scene::lights::punctual_incident(&self.punctual, x, n, u, &|d, t| {
+            self.bvh.any_hit(&Ray::new(origin, d), 1e-9, t)
+        })
+    }
+
+    /// One light sample of the emitting faces, chosen by power.
+    fn face_direct(&self, x: DVec3, n: DVec3, rng: &mut Rng) -> Rgb {
         if self.lights.is_empty() {
             return Rgb::ZERO;
         }

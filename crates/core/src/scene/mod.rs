@@ -10,11 +10,15 @@
 //! first (errors name `file:line`), then parsed by `tobj`, then the geometry is checked.
 
 mod camera;
+mod default_lights;
 pub mod gallery;
+pub mod lights;
 mod specular;
 mod validate;
 
 pub use camera::Camera;
+pub use default_lights::DEFAULT_LIGHTS_HINT;
+pub use lights::{Light, LightError};
 
 use std::path::{Path, PathBuf};
 
@@ -102,6 +106,8 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// The OBJ file this came from, if any.
     pub source: Option<PathBuf>,
+    /// Light sources that are not faces: sky, suns, point lights ([`lights`]).
+    pub lights: Vec<Light>,
 }
 
 #[derive(Clone, Debug, Default)]
@@ -345,6 +351,54 @@ impl Scene {
     /// Axis-aligned bounds of all faces.
     pub fn bounds(&self) -> crate::geometry::Aabb {
         crate::geometry::Aabb::from_points(self.faces.iter().flat_map(|f| f.vertices.iter()))
+    }
+
+    /// Whether anything gives light: an emitting face or a light of [`Scene::lights`].
+    pub fn has_light(&self) -> bool {
+        self.emitted_power().max_element() > 0.0 || self.lights.iter().any(Light::is_on)
+    }
+
+    /// Adds a rectangular (or any planar convex) emitter of radiance `emission`, emitting
+    /// towards the side from which `corners` run counter-clockwise, as a face of its own
+    /// material (reflectance 0.5). Returns the material's index.
+    pub fn add_area_light(&mut self, corners: Vec<DVec3>, emission: Rgb) -> MaterialId {
+        let id = MaterialId(self.materials.len() as u32);
+        let n = self
+            .materials
+            .iter()
+            .filter(|m| m.name.starts_with("area light"))
+            .count();
+        self.materials.push(Material {
+            name: format!("area light {}", n + 1),
+            reflectance: Rgb::splat(0.5),
+            emission,
+            surface: Surface::Diffuse,
+        });
+        let source_face = self.faces.iter().map(|f| f.source_face + 1).max().unwrap_or(0);
+        self.faces.push(Face {
+            vertices: corners,
+            material: id,
+            source_face,
+            line: 0,
+        });
+        id
+    }
+
+    /// Refuses a scene that nothing lights (with `--no-default-lights`).
+    pub fn check_lit(&self) -> Result<(), SceneError> {
+        if self.has_light() {
+            return Ok(());
+        }
+        Err(SceneError::Invalid {
+            file: self
+                .source
+                .as_ref()
+                .map(|p| p.display().to_string())
+                .unwrap_or_else(|| self.name.clone()),
+            message: "no emitter: no face has a material with positive Ke and no light was \
+                      given (--sky, --sun, --point), so the image would be black"
+                .into(),
+        })
     }
 
     /// Total emitted power Σ E·A (per channel, radiance units × area).

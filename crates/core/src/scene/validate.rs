@@ -445,7 +445,7 @@ pub(super) fn load(
             message: format!("no usable faces ({dropped} zero-area face(s) dropped)"),
         });
     }
-    let scene = Scene {
+    Ok(Scene {
         name: String::new(),
         faces,
         materials,
@@ -453,14 +453,6 @@ pub(super) fn load(
         camera: None,
         warnings,
         source: None,
-    };
-    if scene.emitted_power().max_element() <= 0.0 {
-        return Err(SceneError::Invalid {
-            file: file.to_string(),
-            message:
-                "no emitter: no face has a material with positive Ke, so the image would be black"
-                    .into(),
-        });
-    }
-    Ok(scene)
+        lights: Vec::new(),
+    })
 }

@@ -101,7 +101,7 @@ impl Iteration for BiCgStab {
             None => {
                 let ax = apply(p, matrix, b);
                 let r: Vec<Rgb> = (0..ax.len())
-                    .map(|i| material(p, i).emission - ax[i])
+                    .map(|i| p.patch_source(i) - ax[i])
                     .collect();
                 let norm0 = norm(&r);
                 if norm0 == 0.0 {

@@ -100,7 +100,7 @@ impl Iteration for Relaxation {
                 let old = b.to_vec();
                 for (k, bk) in b.iter_mut().enumerate() {
                     let m = material(k);
-                    *bk = m.emission + m.reflectance * matrix.gather(k, &old);
+                    *bk = p.patch_source(k) + m.reflectance * matrix.gather(k, &old);
                 }
             }
             GatherMethod::GaussSeidel | GatherMethod::Sor(_) => {
@@ -110,7 +110,7 @@ impl Iteration for Relaxation {
                 };
                 for k in 0..b.len() {
                     let m = material(k);
-                    let gs = m.emission + m.reflectance * matrix.gather(k, b);
+                    let gs = p.patch_source(k) + m.reflectance * matrix.gather(k, b);
                     b[k] = b[k] * (1.0 - w) + gs * w;
                 }
             }

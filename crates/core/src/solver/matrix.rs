@@ -115,7 +115,7 @@ impl PatchMatrix {
                 }
                 for (k, h) in chunk.iter_mut().enumerate() {
                     let j = first + k;
-                    *h = problem.material_of(mesh.elements[j].patch).emission + rho[j] * *h;
+                    *h = problem.element_source(j) + rho[j] * *h;
                 }
             });
         out
@@ -130,7 +130,8 @@ impl PatchMatrix {
             .enumerate()
             .map(|(p, patch)| {
                 let m = &problem.scene.materials[patch.material.0 as usize];
-                channel_sum(m.emission + m.reflectance * self.gather(p, b) - b[p]) * patch.area
+                channel_sum(problem.patch_source(p) + m.reflectance * self.gather(p, b) - b[p])
+                    * patch.area
             })
             .sum();
         relative(r, emitted)
@@ -311,8 +312,8 @@ impl<I: Iteration> Solver for MatrixSolver<I> {
         let mut rho_max: f64 = 0.0;
         for (p, patch) in problem.mesh.patches.iter().enumerate() {
             let m = &problem.scene.materials[patch.material.0 as usize];
-            let r =
-                m.emission + m.reflectance * self.matrix.gather(p, &self.patch_b) - self.patch_b[p];
+            let r = problem.patch_source(p) + m.reflectance * self.matrix.gather(p, &self.patch_b)
+                - self.patch_b[p];
             r_max = r_max.max(r.abs().max_element());
             rho_max = rho_max.max(m.reflectance.max_element());
         }

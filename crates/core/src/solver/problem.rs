@@ -4,10 +4,11 @@
 use std::sync::Arc;
 
 use crate::formfactor::hemicube::ItemBufferRaster;
+use crate::formfactor::lights::ExternalLight;
 use crate::formfactor::{FormFactorMethod, RowContext};
 use crate::geometry::Bvh;
 use crate::mesh::{self, Mesh, PatchId};
-use crate::scene::{Material, Rgb, Scene};
+use crate::scene::{Light, Material, Rgb, Scene};
 
 use super::{SolverConfig, SolverError, check_power};
 
@@ -19,6 +20,10 @@ pub struct Problem {
     pub bvh: Bvh,
     /// Offset of shadow-ray end points from their surfaces (scene units).
     pub epsilon: f64,
+    /// What the sky, suns and point lights give each element (irradiance over π).
+    pub external: ExternalLight,
+    /// The same, area-averaged over each patch.
+    patch_external: Vec<Rgb>,
 }
 
 impl Problem {
@@ -56,13 +61,59 @@ impl Problem {
         check_power(&scene.materials, &mesh)?;
         let bvh = Bvh::build(&mesh.blocker_triangles(&scene));
         let epsilon = 1e-6 * mesh.bounds().diagonal().max(1e-12);
-        Ok(Self {
+        let mut problem = Self {
             scene,
             config,
             mesh,
             bvh,
             epsilon,
-        })
+            external: ExternalLight::default(),
+            patch_external: Vec::new(),
+        };
+        problem.light_elements();
+        Ok(problem)
+    }
+
+    /// Computes what the lights that are not faces give each element and patch.
+    fn light_elements(&mut self) {
+        self.external =
+            ExternalLight::compute(&self.scene.lights, &self.mesh, &self.bvh, self.epsilon);
+        self.patch_external = if self.external.is_empty() {
+            Vec::new()
+        } else {
+            self.mesh
+                .patches
+                .iter()
+                .map(|p| {
+                    let sum: Rgb = (p.elements.start..p.elements.end)
+                        .map(|e| self.external.at(e as usize) * self.mesh.elements[e as usize].area)
+                        .sum();
+                    if p.area > 0.0 { sum / p.area } else { Rgb::ZERO }
+                })
+                .collect()
+        };
+    }
+
+    /// Replaces the lights that are not faces and recomputes what they give.
+    pub fn set_lights(&mut self, lights: Vec<Light>) {
+        self.scene.lights = lights;
+        self.light_elements();
+    }
+
+    /// What patch `p` sends before any reflection: its `Ke` plus the reflected share of
+    /// the sky, suns and point lights (which are shot first, as emitters are).
+    pub fn patch_source(&self, p: usize) -> Rgb {
+        let m = &self.scene.materials[self.mesh.patches[p].material.0 as usize];
+        match self.patch_external.get(p) {
+            Some(h) => m.emission + m.reflectance * *h,
+            None => m.emission,
+        }
+    }
+
+    /// What element `e` sends before any reflection (see [`Problem::patch_source`]).
+    pub fn element_source(&self, e: usize) -> Rgb {
+        let m = self.material_of(self.mesh.elements[e].patch);
+        m.emission + m.reflectance * self.external.at(e)
     }
 
     /// Rebuilds the mesh with a new element size (and the BVH's visibility groups).
@@ -81,6 +132,7 @@ impl Problem {
         self.bvh = Bvh::build(&mesh.blocker_triangles(&self.scene));
         self.mesh = mesh;
         self.config.element_size = Some(element_size);
+        self.light_elements();
         Ok(())
     }
 
@@ -88,12 +140,11 @@ impl Problem {
         &self.scene.materials[self.mesh.patch(patch).material.0 as usize]
     }
 
-    /// Emission of each patch's material: the unshot (or gathered) radiance of a dark start.
+    /// What each patch sends before any reflection ([`Problem::patch_source`]): the unshot
+    /// (or gathered) radiance of a dark start.
     pub fn patch_emission(&self) -> Vec<Rgb> {
-        self.mesh
-            .patches
-            .iter()
-            .map(|q| self.scene.materials[q.material.0 as usize].emission)
+        (0..self.mesh.patches.len())
+            .map(|p| self.patch_source(p))
             .collect()
     }
 
@@ -106,12 +157,10 @@ impl Problem {
             .collect()
     }
 
-    /// Emission of each element's material: the radiosity of a dark start.
+    /// What each element sends before any reflection: the radiosity of a dark start.
     pub fn element_emission(&self) -> Vec<Rgb> {
-        self.mesh
-            .elements
-            .iter()
-            .map(|e| self.material_of(e.patch).emission)
+        (0..self.mesh.elements.len())
+            .map(|e| self.element_source(e))
             .collect()
     }
 
@@ -124,14 +173,14 @@ impl Problem {
             .collect()
     }
 
-    /// Σ |E_i| A_i over patches (channel sums): the power the lights put in.
+    /// Σ |S_i| A_i over patches (channel sums) of the sources [`Problem::patch_source`]:
+    /// the power the lights put in.
     pub fn emitted_power(&self) -> f64 {
         self.mesh
             .patches
             .iter()
-            .map(|p| {
-                super::channel_sum(self.scene.materials[p.material.0 as usize].emission) * p.area
-            })
+            .enumerate()
+            .map(|(k, p)| super::channel_sum(self.patch_source(k)) * p.area)
             .sum()
     }
 

@@ -369,7 +369,7 @@ impl ProgressiveSolver {
             if p.material != id {
                 continue;
             }
-            let new = emission + reflectance * self.incident[j];
+            let new = emission + reflectance * (self.incident[j] + self.problem.external.at(j));
             gained[e.patch.0 as usize] += (new - self.radiosity[j]) * e.area;
             self.radiosity[j] = new;
         }
@@ -390,10 +390,11 @@ impl ProgressiveSolver {
     pub fn power_balance(&self) -> (Rgb, Rgb) {
         let mut emitted = Rgb::ZERO;
         let mut absorbed = Rgb::ZERO;
-        for (e, h) in self.problem.mesh.elements.iter().zip(&self.incident) {
+        for (k, (e, h)) in self.problem.mesh.elements.iter().zip(&self.incident).enumerate() {
             let m = self.problem.material_of(e.patch);
-            emitted += m.emission * e.area;
-            absorbed += (Rgb::ONE - m.reflectance) * *h * e.area;
+            let external = self.problem.external.at(k);
+            emitted += (m.emission + external) * e.area;
+            absorbed += (Rgb::ONE - m.reflectance) * (*h + external) * e.area;
         }
         (emitted, absorbed)
     }

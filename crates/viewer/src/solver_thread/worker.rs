@@ -442,7 +442,10 @@ impl Worker {
         Flow::Continue
     }
 
-    fn load(&mut self, scene: Scene) {
+    fn load(&mut self, mut scene: Scene) {
+        if let Some(message) = scene.add_default_lights() {
+            self.send_event(Event::Notice(format!("{}: {message}", scene.name)));
+        }
         // A new scene gets its own default element size, the other settings stay.
         let config = SolverConfig {
             element_size: None,

@@ -327,7 +327,7 @@ impl HierarchicalSolver {
         for (e, el) in self.problem.mesh.elements.iter().enumerate() {
             let leaf = self.tree.leaf[e] as usize;
             let p = el.patch.0 as usize;
-            let new = self.emission[p] + self.reflectance[p] * down[leaf];
+            let new = self.problem.element_source(e) + self.reflectance[p] * down[leaf];
             debug_assert!(new.is_finite());
             self.change[e] = new - self.radiosity[e];
             residual += channel_sum(self.change[e]) * el.area;
