@@ -380,6 +380,25 @@ impl ProgressiveSolver {
         Ok(())
     }
 
+    /// Replaces the sky, suns and point lights; the change in what each element receives
+    /// becomes unshot radiance, so shooting continues from the current state.
+    pub fn set_lights(&mut self, lights: Vec<crate::scene::Light>) {
+        let n = self.problem.mesh.elements.len();
+        let old: Vec<Rgb> = (0..n).map(|e| self.problem.element_source(e)).collect();
+        self.problem.set_lights(lights);
+        let mesh = &self.problem.mesh;
+        let mut gained = vec![Rgb::ZERO; mesh.patches.len()];
+        for (j, e) in mesh.elements.iter().enumerate() {
+            let change = self.problem.element_source(j) - old[j];
+            self.radiosity[j] += change;
+            gained[e.patch.0 as usize] += change * e.area;
+        }
+        for ((u, g), p) in self.unshot.iter_mut().zip(&gained).zip(&mesh.patches) {
+            *u += *g / p.area;
+        }
+        self.emitted_power = self.problem.emitted_power().max(f64::MIN_POSITIVE);
+    }
+
     /// Incident radiance per element, `H_j = Σ ΔB_i F_ji` over all shots.
     pub fn incident(&self) -> &[Rgb] {
         &self.incident
