@@ -23,7 +23,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 
-use nusselt_core::scene::{Light, LoadOptions, Scene};
+use nusselt_core::scene::{Light, LoadOptions, Scene, SceneFile, is_scene_file};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -55,7 +55,8 @@ pub enum Command {
 /// Which scene to load: an OBJ file or a built-in.
 #[derive(Args, Debug, Clone)]
 pub struct SceneArgs {
-    /// OBJ file (with its MTL files next to it).
+    /// OBJ file (with its MTL files next to it), or a scene file (`.json`: a model, its
+    /// lights, camera and material edits; see the README).
     pub scene: Option<PathBuf>,
     /// Built-in scene: cornell, cornell-specular (a mirror and a glass block), cornell-glossy
     /// (a glossy metal and a glass block), furnace, cube (ceiling-lit unit cube, 12
@@ -128,6 +129,11 @@ impl SceneArgs {
             rho: self.rho,
         };
         let scene = match (&self.scene, &self.builtin) {
+            (Some(path), None) if is_scene_file(path) => {
+                let mut scene = SceneFile::read(path)?.load(path)?;
+                scene.two_sided |= self.two_sided;
+                scene
+            }
             (Some(path), None) => Scene::load_obj(path, &opts)?,
             (None, Some(name)) => Scene::builtin(name, &opts)?,
             (None, None) => bail!("give a scene: an OBJ file or --builtin cornell|furnace"),

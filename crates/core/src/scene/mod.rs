@@ -11,6 +11,7 @@
 
 mod camera;
 mod default_lights;
+pub mod file;
 pub mod gallery;
 pub mod lights;
 mod specular;
@@ -18,6 +19,7 @@ mod validate;
 
 pub use camera::Camera;
 pub use default_lights::DEFAULT_LIGHTS_HINT;
+pub use file::{SceneFile, is_scene_file};
 pub use lights::{Light, LightError};
 
 use std::path::{Path, PathBuf};

@@ -422,7 +422,7 @@ impl Worker {
                     self.ray_input_key = None;
                 }
             }
-            Command::LoadPath(path) => match Scene::load_obj(&path, &LoadOptions::default()) {
+            Command::LoadPath(path) => match load_path(&path) {
                 Ok(scene) => self.load(scene),
                 Err(e) => self.send_event(Event::Error(e.to_string())),
             },
@@ -470,5 +470,14 @@ impl Worker {
             }
             Err(e) => self.send_event(Event::Error(format!("edit: {e}"))),
         }
+    }
+}
+
+/// A model or a scene file, by extension.
+fn load_path(path: &std::path::Path) -> Result<Scene, nusselt_core::scene::SceneError> {
+    if nusselt_core::scene::is_scene_file(path) {
+        nusselt_core::scene::SceneFile::read(path)?.load(path)
+    } else {
+        Scene::load_obj(path, &LoadOptions::default())
     }
 }
