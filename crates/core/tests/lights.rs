@@ -138,7 +138,7 @@ fn a_sky_over_an_open_floor_gives_pi_l_and_nothing_in_a_closed_box() {
     });
     // Closed: no ray escapes, so the sky adds nothing to the furnace's own solution.
     let (mut a, mut b) = (solver(furnace, 0.25), solver(skylit, 0.25));
-    assert!(b.problem().external.sky.iter().all(|h| *h == DVec3::ZERO));
+    assert!(b.problem().external.sky_fraction.iter().all(|f| *f == 0.0));
     converge(&mut a);
     converge(&mut b);
     assert_eq!(a.element_radiance(false), b.element_radiance(false));

@@ -24,6 +24,7 @@ pub mod dialog;
 pub mod export;
 mod files;
 pub mod frame_log;
+mod lights_panel;
 mod panels;
 mod ray_view;
 pub mod raytrace;

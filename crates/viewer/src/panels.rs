@@ -42,6 +42,7 @@ pub enum Action {
         kd: [f64; 3],
         ke: [f64; 3],
     },
+    SetLights(Vec<nusselt_core::scene::Light>),
     Quit,
 }
 
@@ -189,6 +190,8 @@ pub fn side_panel(
                 stats::plot_section(ui, s);
             }
             ui.checkbox(&mut state.show_plot, "convergence plot");
+            ui.separator();
+            crate::lights_panel::lights_section(ui, s, actions);
             ui.separator();
             selection_section(ui, state, s, actions);
         } else {

@@ -212,6 +212,8 @@ pub struct Snapshot {
     pub ambient: [f32; 3],
     pub stats: Stats,
     pub materials: Arc<Vec<Material>>,
+    /// The scene's skies, suns and point lights.
+    pub lights: Arc<Vec<nusselt_core::scene::Light>>,
     /// Materials as loaded (for "reset edits" and showing what changed).
     pub loaded_materials: Arc<Vec<Material>>,
     pub history: Arc<Vec<HistoryPoint>>,

@@ -34,8 +34,11 @@ const SKY_MAX_SIDE: usize = 8;
 /// Irradiance over π that each element receives from the sky and from suns and points.
 #[derive(Clone, Debug, Default)]
 pub struct ExternalLight {
-    /// Per element; empty when the scene has no sky.
-    pub sky: Vec<Rgb>,
+    /// The sky's radiance.
+    pub sky_radiance: Rgb,
+    /// Per element, the cosine-weighted fraction of visible sky; empty until a sky is on
+    /// (then kept: it depends on the geometry only).
+    pub sky_fraction: Vec<f64>,
     /// Per element; empty when the scene has no sun or point light.
     pub punctual: Vec<Rgb>,
 }
@@ -43,21 +46,33 @@ pub struct ExternalLight {
 impl ExternalLight {
     /// Sky plus suns and points at element `e`.
     pub fn at(&self, e: usize) -> Rgb {
-        self.sky.get(e).copied().unwrap_or(Rgb::ZERO)
-            + self.punctual.get(e).copied().unwrap_or(Rgb::ZERO)
+        self.sky(e) + self.punctual.get(e).copied().unwrap_or(Rgb::ZERO)
+    }
+
+    /// The sky's part at element `e`.
+    pub fn sky(&self, e: usize) -> Rgb {
+        self.sky_fraction
+            .get(e)
+            .map_or(Rgb::ZERO, |f| self.sky_radiance * *f)
     }
 
     pub fn is_empty(&self) -> bool {
-        self.sky.is_empty() && self.punctual.is_empty()
+        (self.sky_fraction.is_empty() || self.sky_radiance == Rgb::ZERO)
+            && self.punctual.is_empty()
     }
 
     /// Computes both parts for every element of `mesh`; `bvh` is the solve's blocker BVH
     /// (ids: occluder groups), `epsilon` the offset of ray origins.
     pub fn compute(lights: &[Light], mesh: &Mesh, bvh: &Bvh, epsilon: f64) -> Self {
+        let mut light = Self::default();
+        light.update(lights, mesh, bvh, epsilon);
+        light
+    }
+
+    /// Recomputes for new `lights` on the same mesh: the sky fractions only the first time
+    /// a sky is on, the suns and points every time (a few shadow rays per element).
+    pub fn update(&mut self, lights: &[Light], mesh: &Mesh, bvh: &Bvh, epsilon: f64) {
         let n = mesh.elements.len();
-        let sky = sky_radiance(lights);
-        let side = ((SKY_RAY_BUDGET / n.max(1) as f64).sqrt() as usize)
-            .clamp(SKY_MIN_SIDE, SKY_MAX_SIDE);
         let at = |k: usize| Probe {
             element: &mesh.elements[k],
             own: mesh.patch(mesh.elements[k].patch).occluder,
@@ -65,15 +80,16 @@ impl ExternalLight {
             epsilon,
             seed: hash_seed(&[k as u64, 0x11647]),
         };
-        let sky = if sky.max_element() > 0.0 {
-            (0..n)
+        self.sky_radiance = sky_radiance(lights);
+        if self.sky_radiance.max_element() > 0.0 && self.sky_fraction.len() != n {
+            let side = ((SKY_RAY_BUDGET / n.max(1) as f64).sqrt() as usize)
+                .clamp(SKY_MIN_SIDE, SKY_MAX_SIDE);
+            self.sky_fraction = (0..n)
                 .into_par_iter()
-                .map(|k| sky * at(k).sky_fraction(side))
-                .collect()
-        } else {
-            Vec::new()
-        };
-        let punctual = if has_punctual(lights) {
+                .map(|k| at(k).sky_fraction(side))
+                .collect();
+        }
+        self.punctual = if has_punctual(lights) {
             (0..n)
                 .into_par_iter()
                 .map(|k| at(k).punctual(lights))
@@ -81,7 +97,6 @@ impl ExternalLight {
         } else {
             Vec::new()
         };
-        Self { sky, punctual }
     }
 }
 

@@ -286,6 +286,18 @@ impl<I: Iteration> Solver for MatrixSolver<I> {
         }
         Ok(())
     }
+    /// Continues from the current solution with the new sources.
+    fn set_lights(&mut self, lights: Vec<crate::scene::Light>) {
+        self.problem.set_lights(lights);
+        self.emitted = self.problem.emitted_power().max(f64::MIN_POSITIVE);
+        self.iteration.restart();
+        self.stalled = false;
+        if self.matrix.complete(&self.problem) {
+            self.residual = self
+                .matrix
+                .residual(&self.problem, &self.patch_b, self.emitted);
+        }
+    }
     fn reset(&mut self) {
         let p = &self.problem;
         self.patch_b = p.patch_emission();

@@ -317,6 +317,9 @@ pub trait Solver: Send {
         reflectance: Rgb,
         emission: Rgb,
     ) -> Result<(), SolverError>;
+    /// Replaces the sky, suns and point lights; the solution continues from its current
+    /// state (the change in what each element receives is what is left to distribute).
+    fn set_lights(&mut self, lights: Vec<crate::scene::Light>);
     /// Back to the dark start (cached form factors kept).
     fn reset(&mut self);
     /// Channel mean of [`ambient`](Self::ambient).

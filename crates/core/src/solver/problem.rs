@@ -76,8 +76,11 @@ impl Problem {
 
     /// Computes what the lights that are not faces give each element and patch.
     fn light_elements(&mut self) {
-        self.external =
-            ExternalLight::compute(&self.scene.lights, &self.mesh, &self.bvh, self.epsilon);
+        if self.external.sky_fraction.len() != self.mesh.elements.len() {
+            self.external = ExternalLight::default();
+        }
+        self.external
+            .update(&self.scene.lights, &self.mesh, &self.bvh, self.epsilon);
         self.patch_external = if self.external.is_empty() {
             Vec::new()
         } else {
@@ -132,6 +135,7 @@ impl Problem {
         self.bvh = Bvh::build(&mesh.blocker_triangles(&self.scene));
         self.mesh = mesh;
         self.config.element_size = Some(element_size);
+        self.external = ExternalLight::default();
         self.light_elements();
         Ok(())
     }

@@ -94,6 +94,7 @@ impl ViewerApp {
                     emission: ke,
                 });
             }
+            Action::SetLights(lights) => self.solver.queue(Command::SetLights(lights)),
             Action::Quit => ctx.send_viewport_cmd(egui::ViewportCommand::Close),
         }
     }

@@ -68,6 +68,8 @@ pub enum Command {
     },
     /// All materials back to how they were loaded (incrementally).
     ResetMaterials,
+    /// The new list of skies, suns and point lights (incremental: no restart).
+    SetLights(Vec<nusselt_core::scene::Light>),
     /// Switch the form-factor method (restarts the solve).
     SetMethod(FormFactorMethod),
     /// Switch the solver, keeping the mesh and cached rows (restarts from dark). Refused
@@ -262,6 +264,11 @@ impl SolverHandle {
         if let Command::SetMaterial { material, .. } = &command
             && let Some(Command::SetMaterial { material: last, .. }) = self.outbox.back()
             && last == material
+        {
+            self.outbox.pop_back();
+        }
+        if matches!(command, Command::SetLights(_))
+            && matches!(self.outbox.back(), Some(Command::SetLights(_)))
         {
             self.outbox.pop_back();
         }

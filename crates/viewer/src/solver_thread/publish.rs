@@ -86,6 +86,7 @@ impl Worker {
             ambient: ambient.as_vec3().to_array(),
             stats,
             materials: Arc::new(problem.scene.materials.clone()),
+            lights: Arc::new(problem.scene.lights.clone()),
             loaded_materials: self.loaded_materials.clone(),
             history: self.history.clone(),
             scene_name: problem.scene.name.clone(),

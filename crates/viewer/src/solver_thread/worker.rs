@@ -399,6 +399,13 @@ impl Worker {
                 reflectance,
                 emission,
             } => self.set_material(material, Rgb::from(reflectance), Rgb::from(emission)),
+            Command::SetLights(lights) => {
+                if let Some(s) = self.solver.as_mut() {
+                    s.set_lights(lights);
+                    self.edit_unpublished = true;
+                    self.dirty = true;
+                }
+            }
             Command::ResetMaterials => {
                 let loaded = self.loaded_materials.clone();
                 for (i, m) in loaded.iter().enumerate() {

@@ -66,6 +66,14 @@ impl Solver for HierarchicalSolver {
         self.residual_at_refine = f64::INFINITY;
         Ok(())
     }
+    /// Keeps the links and continues from the current solution.
+    fn set_lights(&mut self, lights: Vec<crate::scene::Light>) {
+        self.problem.set_lights(lights);
+        self.emission = self.problem.patch_emission();
+        self.emitted = self.problem.emitted_power();
+        self.residual = if self.emitted > 0.0 { 1.0 } else { 0.0 };
+        self.residual_at_refine = f64::INFINITY;
+    }
     /// Back to the emission alone; the links are kept.
     fn reset(&mut self) {
         self.emission = self.problem.patch_emission();

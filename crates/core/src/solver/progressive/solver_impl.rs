@@ -38,6 +38,9 @@ impl Solver for ProgressiveSolver {
     ) -> Result<(), SolverError> {
         ProgressiveSolver::set_material(self, id, reflectance, emission)
     }
+    fn set_lights(&mut self, lights: Vec<crate::scene::Light>) {
+        ProgressiveSolver::set_lights(self, lights)
+    }
     fn reset(&mut self) {
         ProgressiveSolver::reset(self)
     }

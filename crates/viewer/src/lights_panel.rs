@@ -1,0 +1,155 @@
+//! The Lights section of the side panel: every light of the scene (emitting materials too),
+//! add a sky, a sun or a point light, change its power, direction or position, delete it.
+//! Each change is sent whole as the new list; the solver continues from its current state.
+
+use eframe::egui;
+use nusselt_core::scene::{Light, Rgb};
+
+use crate::panels::Action;
+use crate::snapshot::Snapshot;
+
+/// Strength of a colour: its brightest channel, edited on a logarithmic slider with the
+/// channels' ratios kept. Returns whether it changed.
+fn strength(ui: &mut egui::Ui, label: &str, c: &mut Rgb, max: f64) -> bool {
+    let mut s = c.max_element();
+    let changed = ui
+        .add(
+            egui::Slider::new(&mut s, 0.0..=max)
+                .logarithmic(true)
+                .text(label),
+        )
+        .changed();
+    if changed {
+        let old = c.max_element();
+        *c = if old > 0.0 {
+            *c * (s / old)
+        } else {
+            Rgb::splat(s)
+        };
+    }
+    changed
+}
+
+/// Azimuth (from +z towards +x) and elevation sliders, in degrees, for a sun's direction.
+fn sun_direction(ui: &mut egui::Ui, d: &mut glam::DVec3) -> bool {
+    let mut el = d.y.clamp(-1.0, 1.0).asin().to_degrees();
+    let mut az = d.x.atan2(d.z).to_degrees();
+    let a = ui
+        .add(egui::Slider::new(&mut az, -180.0..=180.0).text("azimuth °"))
+        .changed();
+    let e = ui
+        .add(egui::Slider::new(&mut el, -10.0..=90.0).text("elevation °"))
+        .changed();
+    if a || e {
+        let (el, az) = (el.to_radians(), az.to_radians());
+        *d = glam::DVec3::new(el.cos() * az.sin(), el.sin(), el.cos() * az.cos());
+    }
+    a || e
+}
+
+fn point_position(ui: &mut egui::Ui, p: &mut glam::DVec3, step: f64) -> bool {
+    ui.horizontal(|ui| {
+        let mut changed = false;
+        for (name, v) in [("x", &mut p.x), ("y", &mut p.y), ("z", &mut p.z)] {
+            changed |= ui
+                .add(egui::DragValue::new(v).speed(step).prefix(name))
+                .changed();
+        }
+        changed
+    })
+    .inner
+}
+
+/// One light's controls; returns whether it changed and whether it is to be deleted.
+fn light_row(ui: &mut egui::Ui, k: usize, light: &mut Light, step: f64) -> (bool, bool) {
+    let mut changed = false;
+    let mut delete = false;
+    ui.horizontal(|ui| {
+        let kind = match light {
+            Light::Sky { .. } => "sky",
+            Light::Sun { .. } => "sun",
+            Light::Point { .. } => "point",
+        };
+        ui.label(format!("{}. {kind}", k + 1));
+        delete = ui.small_button("delete").clicked();
+    });
+    match light {
+        Light::Sky { radiance } => changed |= strength(ui, "radiance", radiance, 100.0),
+        Light::Sun {
+            direction,
+            irradiance,
+            ..
+        } => {
+            changed |= sun_direction(ui, direction);
+            changed |= strength(ui, "irradiance", irradiance, 1000.0);
+        }
+        Light::Point {
+            position,
+            intensity,
+        } => {
+            changed |= point_position(ui, position, step);
+            changed |= strength(ui, "intensity", intensity, 1e9);
+        }
+    }
+    (changed, delete)
+}
+
+/// The section; pushes [`Action::SetLights`] with the whole new list on any change.
+pub fn lights_section(ui: &mut egui::Ui, snap: &Snapshot, actions: &mut Vec<Action>) {
+    egui::CollapsingHeader::new("Lights")
+        .default_open(true)
+        .show(ui, |ui| {
+            let g = &snap.geometry;
+            let size = (g.bounds_max - g.bounds_min).length().max(1e-9);
+            let centre = (g.bounds_max + g.bounds_min) * 0.5;
+            let mut lights = (*snap.lights).clone();
+            let mut changed = false;
+            let mut remove = None;
+            for (k, l) in lights.iter_mut().enumerate() {
+                let (c, d) = light_row(ui, k, l, size * 0.005);
+                changed |= c;
+                if d {
+                    remove = Some(k);
+                }
+            }
+            if let Some(k) = remove {
+                lights.remove(k);
+                changed = true;
+            }
+            for m in snap.materials.iter().filter(|m| m.is_emitter()) {
+                let e = m.emission;
+                ui.label(format!(
+                    "emitting material '{}': Ke {:.3} {:.3} {:.3} (edit it under Selection)",
+                    m.name, e.x, e.y, e.z
+                ));
+            }
+            ui.horizontal(|ui| {
+                if ui.button("+ sky").clicked() {
+                    lights.push(Light::Sky {
+                        radiance: Rgb::splat(0.8),
+                    });
+                    changed = true;
+                }
+                if ui.button("+ sun").clicked() {
+                    lights.push(Light::Sun {
+                        direction: glam::DVec3::new(0.287, 0.819, 0.497),
+                        irradiance: Rgb::splat(3.0),
+                        angular_radius: 0.0,
+                    });
+                    changed = true;
+                }
+                if ui.button("+ point").clicked() {
+                    // Irradiance about π at half the scene's diagonal.
+                    let r = size * 0.5;
+                    lights.push(Light::Point {
+                        position: centre,
+                        intensity: Rgb::splat(std::f64::consts::PI * r * r),
+                    });
+                    changed = true;
+                }
+            });
+            if changed {
+                actions.push(Action::SetLights(lights));
+            }
+        });
+}
