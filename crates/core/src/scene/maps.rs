@@ -280,11 +280,74 @@ fn problem(rs: &[&MapRequest], what: &str) -> String {
         1 => String::new(),
         n => format!(" (and {} more material(s))", n - 1),
     };
+    let fallback = match r.slot {
+        Slot::Diffuse => "the material keeps its Kd",
+        Slot::Alpha => "the material stays opaque",
+    };
     format!(
-        "{}:{}: {} of '{}': {what}; the material keeps its Kd{more}",
+        "{}:{}: {} of '{}': {what}; {fallback}{more}",
         r.mtl_file,
         r.line,
         r.slot.keyword(),
         r.name
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(s: &str) -> Result<MapStatement, String> {
+        parse_map(&s.split_whitespace().collect::<Vec<_>>())
+    }
+
+    #[test]
+    fn options_are_applied_or_listed_as_ignored() {
+        let m = parse("-s 2 3 1 -o 0.5 0.25 0 -clamp on -bm 0.4 tex\\wall 1.png").expect("parses");
+        assert_eq!(m.name, "tex\\wall 1.png");
+        assert_eq!(m.transform.scale, DVec2::new(2.0, 3.0));
+        assert_eq!(m.transform.offset, DVec2::new(0.5, 0.25));
+        assert_eq!(m.ignored, ["-clamp", "-bm"]);
+        assert_eq!(
+            m.transform.apply(DVec2::new(1.0, 1.0)),
+            DVec2::new(2.5, 3.25)
+        );
+        let m = parse("-s 4 wall.png").expect("parses");
+        assert_eq!(m.transform.scale, DVec2::new(4.0, 1.0));
+        assert_eq!(
+            parse("wall.png").expect("parses").transform,
+            UvTransform::default()
+        );
+        // The last word is the file name even when it looks like a number.
+        assert_eq!(parse("-o 1 2").expect("parses").name, "2");
+        assert!(parse("").is_err());
+        assert!(parse("-clamp").is_err());
+    }
+
+    #[test]
+    fn paths_resolve_backslashes_case_and_bare_names() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let sub = dir.path().join("Textures");
+        std::fs::create_dir(&sub).expect("mkdir");
+        std::fs::write(sub.join("Wall.PNG"), b"x").expect("write");
+        std::fs::write(dir.path().join("floor.tga"), b"x").expect("write");
+        let want = Some(sub.join("Wall.PNG"));
+        for name in [
+            "Textures/Wall.PNG",
+            "Textures\\Wall.PNG",
+            "textures\\wall.png",
+            " TEXTURES/wall.Png ",
+        ] {
+            assert_eq!(resolve_texture_path(dir.path(), name), want, "{name}");
+        }
+        // An absolute path from the author's machine: the file name next to the MTL.
+        let floor = Some(dir.path().join("floor.tga"));
+        assert_eq!(
+            resolve_texture_path(dir.path(), "C:\\Users\\me\\maps\\Floor.TGA"),
+            floor
+        );
+        assert_eq!(resolve_texture_path(dir.path(), "missing.png"), None);
+        assert_eq!(resolve_texture_path(dir.path(), "Textures"), None);
+        assert_eq!(resolve_texture_path(dir.path(), ""), None);
+    }
 }

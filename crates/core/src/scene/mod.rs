@@ -14,6 +14,8 @@ pub mod gallery;
 mod maps;
 mod specular;
 pub mod texture;
+#[cfg(test)]
+mod texture_tests;
 mod texturing;
 mod validate;
 

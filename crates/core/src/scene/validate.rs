@@ -338,7 +338,7 @@ fn clamp_warning(file: &str, materials: &[MtlEntry]) -> Option<String> {
     let (mut clamped, mut placeholder, mut lowered) = (Vec::new(), Vec::new(), Vec::new());
     for m in materials {
         let Some((kd, line)) = m.kd else { continue };
-        let named = format!("'{}' ({file}:{line})", m.name);
+        let named = format!("'{}' (line {line})", m.name);
         if kd == [1.0; 3] && m.diffuse.is_some() {
             placeholder.push(named);
         } else if kd.iter().any(|&x| x >= 1.0) {
