@@ -239,7 +239,7 @@ pub(super) fn load_maps(requests: &[MapRequest]) -> LoadedMaps {
     }
     let read: Vec<Result<Texture, String>> = keys
         .par_iter()
-        .map(|(p, kind)| Texture::load(p, *kind))
+        .map(|(p, kind)| read_image(p, *kind))
         .collect();
     let mut textures = Vec::new();
     let mut id_of_key = vec![None; keys.len()];
@@ -270,6 +270,12 @@ pub(super) fn load_maps(requests: &[MapRequest]) -> LoadedMaps {
         assigned,
         warnings,
     }
+}
+
+/// Reads one image; a decoder that panics on a corrupt file is an error too.
+fn read_image(path: &Path, kind: TextureKind) -> Result<Texture, String> {
+    std::panic::catch_unwind(|| Texture::load(path, kind))
+        .unwrap_or_else(|_| Err("the image decoder failed on this file".into()))
 }
 
 /// One warning for a file several requests share: the first one's MTL line, the others

@@ -6,6 +6,13 @@
 //! A face reflects and emits on its front side, the side from which its vertices run
 //! counter-clockwise, unless the scene is loaded two-sided.
 //!
+//! Textures: a material's `map_Kd` colour multiplies its `Kd` (so `Kd 1 1 1` under a map,
+//! which many exporters write, reflects the map's colour times [`CLAMPED_REFLECTANCE`]; a
+//! textured material without `Kd` does the same), and `map_d` (else the colour map's alpha)
+//! tells where it is opaque: alpha ≥ 0.5, the rest a cut-out. Maps are read only by [`Scene::load_obj`] ([`texture`] for the texels, their
+//! means over patches and their error); a map that cannot be found or read is a warning
+//! and the material keeps its `Kd`.
+//!
 //! Loading never panics and never half-loads: the OBJ and MTL text are checked line by line
 //! first (errors name `file:line`), then parsed by `tobj`, then the geometry is checked.
 

@@ -131,8 +131,8 @@ fn linear_texels(img: &DynamicImage, kind: TextureKind) -> Vec<[f32; 4]> {
 /// Halves a `w` × `h` grid (sides rounded up; an odd side's last column or row is repeated).
 fn half<T: Copy>(src: &[T], w: u32, h: u32, avg: impl Fn([T; 4]) -> T) -> (Vec<T>, u32, u32) {
     let (w2, h2) = (w.div_ceil(2), h.div_ceil(2));
-    let at = |x: u32, y: u32| src[(y.min(h - 1) * w + x.min(w - 1)) as usize];
-    let mut out = Vec::with_capacity((w2 * h2) as usize);
+    let at = |x: u32, y: u32| src[y.min(h - 1) as usize * w as usize + x.min(w - 1) as usize];
+    let mut out = Vec::with_capacity(w2 as usize * h2 as usize);
     for y in 0..h2 {
         for x in 0..w2 {
             let (x0, y0) = (2 * x, 2 * y);
@@ -194,7 +194,7 @@ impl Texture {
     /// missing texels read as opaque black, extra ones are dropped).
     pub fn from_linear(width: u32, height: u32, mut texels: Vec<[f32; 4]>) -> Texture {
         let (width, height) = (width.max(1), height.max(1));
-        texels.resize((width * height) as usize, [0.0, 0.0, 0.0, 1.0]);
+        texels.resize(width as usize * height as usize, [0.0, 0.0, 0.0, 1.0]);
         let n = texels.len() as f64;
         let mut mean = [0.0; 4];
         for t in &texels {

@@ -356,8 +356,8 @@ fn diffuse_map_names(mtl: &Path) -> Vec<String> {
     names
 }
 
-/// Every `map_Kd` of Crytek Sponza (TGAs named with backslashes) and of the bijoutier
-/// (PNGs, CRLF) is found, and each one a face uses is read.
+/// Every `map_Kd` of Crytek Sponza (TGAs named with backslashes), the bijoutier (PNGs, CRLF)
+/// and Šibenik is found, and each one a face uses is read.
 #[test]
 fn the_real_models_find_every_diffuse_map() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -365,6 +365,7 @@ fn the_real_models_find_every_diffuse_map() {
     for (mtl, count) in [
         ("crytek_sponza/sponza.mtl", 24),
         ("bijoutier/BOUTIQUEbijoutier.mtl", 19),
+        ("sibenik/untitled.mtl", 3),
     ] {
         let mtl = root.join(mtl);
         let names = diffuse_map_names(&mtl);
@@ -388,10 +389,15 @@ fn the_real_models_find_every_diffuse_map() {
     let t = Instant::now();
     let bijoutier = with_a_light(&root.join("bijoutier/BOUTIQUEbijoutier.obj"), dir.path());
     let bijoutier_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let sibenik_dir = tempfile::tempdir().expect("temp dir");
+    let sibenik = with_a_light(&root.join("sibenik/sibenik.obj"), sibenik_dir.path());
+    let sibenik_s = t.elapsed().as_secs_f64();
     // Sponza's vase_plant.tga belongs to a material no face uses.
     for (name, s, seconds, textures) in [
         ("crytek_sponza", &sponza, sponza_s, 23),
         ("bijoutier", &bijoutier, bijoutier_s, 19),
+        ("sibenik", &sibenik, sibenik_s, 3),
     ] {
         let missing: Vec<&String> = s
             .warnings
