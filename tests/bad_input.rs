@@ -85,7 +85,6 @@ const ERRORS: &[(&str, &[&str])] = &[
         &["kd_before_newmtl.mtl:1", "before any 'newmtl'"],
     ),
     ("ke_spectral.obj", &["ke_spectral.mtl:2", "not supported"]),
-    ("no_emitter.obj", &["no_emitter.obj", "no emitter"]),
     (
         "all_zero_area.obj",
         &["all_zero_area.obj", "no usable faces", "2 zero-area"],
@@ -106,7 +105,7 @@ const ERRORS: &[(&str, &[&str])] = &[
 const WARNINGS: &[(&str, &[&str])] = &[
     (
         "reflectance_above_one.obj",
-        &["bright.mtl:2", "clamped to 0.999"],
+        &["bright.mtl", "clamped to 0.95 in 'white' (line 2)"],
     ),
     ("zero_area_dropped.obj", &["dropped 2 zero-area face(s)"]),
     ("non_planar_split.obj", &["split 1 non-planar face(s)"]),
@@ -130,6 +129,17 @@ fn every_bad_file_has_its_message() {
             );
         }
     }
+}
+
+#[test]
+fn an_unlit_model_gets_default_lights_unless_refused() {
+    let mut scene = Scene::load_obj(&bad("no_emitter.obj"), &LoadOptions::default())
+        .expect("an unlit model loads");
+    let e = scene.check_lit().expect_err("nothing lights it").to_string();
+    assert!(e.contains("no_emitter.obj") && e.contains("no emitter"), "{e}");
+    let message = scene.add_default_lights().expect("lights added");
+    assert!(message.contains("--no-default-lights"), "{message}");
+    assert!(scene.check_lit().is_ok());
 }
 
 #[test]

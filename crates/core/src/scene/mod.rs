@@ -6,6 +6,13 @@
 //! A face reflects and emits on its front side, the side from which its vertices run
 //! counter-clockwise, unless the scene is loaded two-sided.
 //!
+//! Textures: a material's `map_Kd` colour multiplies its `Kd` (so `Kd 1 1 1` under a map,
+//! which many exporters write, reflects the map's colour times [`CLAMPED_REFLECTANCE`]; a
+//! textured material without `Kd` does the same), and `map_d` (else the colour map's alpha)
+//! tells where it is opaque: alpha ≥ 0.5, the rest a cut-out. Maps are read only by [`Scene::load_obj`] ([`texture`] for the texels, their
+//! means over patches and their error); a map that cannot be found or read is a warning
+//! and the material keeps its `Kd`.
+//!
 //! Loading never panics and never half-loads: the OBJ and MTL text are checked line by line
 //! first (errors name `file:line`), then parsed by `tobj`, then the geometry is checked.
 
@@ -13,26 +20,59 @@ mod camera;
 mod default_lights;
 pub mod file;
 pub mod gallery;
+<<<<<<< HEAD
 pub mod lights;
+=======
+mod maps;
+>>>>>>> textures
 mod specular;
+pub mod texture;
+#[cfg(test)]
+mod texture_tests;
+mod texturing;
 mod validate;
 
 pub use camera::Camera;
+<<<<<<< HEAD
 pub use default_lights::DEFAULT_LIGHTS_HINT;
 pub use file::{SceneFile, is_scene_file};
 pub use lights::{Light, LightError};
+=======
+pub use maps::{UvTransform, resolve_texture_path};
+pub use texture::{Texture, TextureId};
+pub use texturing::TextureMean;
+>>>>>>> textures
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 use crate::geometry::polygon;
 
 /// RGB triple in linear units.
 pub type Rgb = DVec3;
 
-/// Largest reflectance accepted; larger values are clamped to it with a warning.
+/// Largest reflectance accepted; a `Kd` channel between it and 1 is lowered to it.
 pub const MAX_REFLECTANCE: f64 = 0.999;
+
+/// What a `Kd` channel of 1 or more becomes. Such a surface would reflect all the light it
+/// receives or more, so a closed scene's radiosity never converges; and `Kd 1 1 1` is what
+/// many exporters write under a texture map, whose colour then multiplies it. 0.95 is about
+/// the brightest real diffuse white (fresh snow, a white reflectance standard), so the
+/// texture keeps nearly its authored brightness and the solve converges. Values below 1
+/// are kept (up to [`MAX_REFLECTANCE`]), so a furnace at ρ = 0.99 still works.
+pub const CLAMPED_REFLECTANCE: f64 = 0.95;
+
+/// A `Kd` channel as the solver uses it: [`CLAMPED_REFLECTANCE`] from 1 up, else at most
+/// [`MAX_REFLECTANCE`], and not negative.
+pub fn clamp_reflectance(kd: f64) -> f64 {
+    if kd >= 1.0 {
+        CLAMPED_REFLECTANCE
+    } else {
+        kd.clamp(0.0, MAX_REFLECTANCE)
+    }
+}
 
 /// `Ns` from which a mirror (`illum` 3 or 5) is perfect: the top of the MTL range (0–1000),
 /// what Blender writes for roughness 0.
@@ -65,12 +105,21 @@ pub enum Surface {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
     pub name: String,
-    /// RGB reflectance ρ, each channel in [0, 0.999].
+    /// RGB reflectance ρ, each channel in [0, 0.999] ([`clamp_reflectance`] of `Kd`); a
+    /// diffuse map's colour multiplies it.
     pub reflectance: Rgb,
     /// RGB emitted radiance.
     pub emission: Rgb,
     /// The specular part, if any.
     pub surface: Surface,
+    /// The diffuse map (`map_Kd`), if one loaded.
+    pub diffuse_map: Option<TextureId>,
+    /// The alpha map (`map_d`), if one loaded.
+    pub alpha_map: Option<TextureId>,
+    /// The diffuse map's `-s`/`-o` transform of the faces' texture coordinates.
+    pub diffuse_uv: UvTransform,
+    /// The alpha map's `-s`/`-o` transform of the faces' texture coordinates.
+    pub alpha_uv: UvTransform,
 }
 
 impl Material {
@@ -93,6 +142,8 @@ pub struct Face {
     pub source_face: usize,
     /// 1-based line in the OBJ file, 0 for generated faces.
     pub line: usize,
+    /// The OBJ `vt` texture coordinates of each vertex, when every vertex of the face has one.
+    pub uvs: Option<Vec<DVec2>>,
 }
 
 #[derive(Clone, Debug)]
@@ -108,8 +159,16 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// The OBJ file this came from, if any.
     pub source: Option<PathBuf>,
+<<<<<<< HEAD
     /// Light sources that are not faces: sky, suns, point lights ([`lights`]).
     pub lights: Vec<Light>,
+=======
+    /// The texture maps materials refer to ([`TextureId`] indexes them); read only by
+    /// [`Scene::load_obj`], each distinct file once.
+    pub textures: Vec<Arc<Texture>>,
+    /// Memory held by `textures`, in bytes.
+    pub texture_bytes: usize,
+>>>>>>> textures
 }
 
 #[derive(Clone, Debug, Default)]
@@ -181,7 +240,7 @@ impl Scene {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "scene".into());
-        let mut scene = validate::load(
+        let (mut scene, requests) = validate::load(
             &path.display().to_string(),
             &text,
             &mut |mtl| {
@@ -195,7 +254,23 @@ impl Scene {
         )?;
         scene.name = name;
         scene.source = Some(path.to_path_buf());
+        scene.attach_maps(&requests);
         Ok(scene)
+    }
+
+    /// Reads the requested texture maps and points the materials at them.
+    fn attach_maps(&mut self, requests: &[maps::MapRequest]) {
+        let loaded = maps::load_maps(requests);
+        for (r, id) in requests.iter().zip(&loaded.assigned) {
+            let m = &mut self.materials[r.material];
+            match r.slot {
+                maps::Slot::Diffuse => m.diffuse_map = *id,
+                maps::Slot::Alpha => m.alpha_map = *id,
+            }
+        }
+        self.texture_bytes = loaded.textures.iter().map(|t| t.bytes()).sum();
+        self.textures = loaded.textures;
+        self.warnings.extend(loaded.warnings);
     }
 
     /// Loads OBJ text with an in-memory MTL library (`mtllib` names are looked up in it).
@@ -205,7 +280,7 @@ impl Scene {
         mtls: &[(&str, &str)],
         opts: &LoadOptions,
     ) -> Result<Scene, SceneError> {
-        let mut scene = validate::load(
+        let (mut scene, requests) = validate::load(
             name,
             obj,
             &mut |mtl| {
@@ -220,6 +295,14 @@ impl Scene {
             opts,
         )?;
         scene.name = name.to_string();
+        if let Some(r) = requests.first() {
+            scene.warnings.push(format!(
+                "{}:{}: {} texture map(s) not read: an in-memory scene has no folder to find them in (load the file to use them)",
+                r.mtl_file,
+                r.line,
+                requests.len()
+            ));
+        }
         Ok(scene)
     }
 

@@ -16,7 +16,7 @@
 
 use glam::DVec3;
 
-use super::{MAX_REFLECTANCE, MIRROR_EXPONENT, Rgb, Surface};
+use super::{MIRROR_EXPONENT, Rgb, Surface, clamp_reflectance};
 
 /// What one material's specular statements said, for the checks that need several of them.
 #[derive(Default)]
@@ -69,7 +69,7 @@ impl SpecularScan {
             )),
             Some((ks, line)) => {
                 let kd = self.kd.unwrap_or([0.5; 3]);
-                if (0..3).any(|c| ks[c] + kd[c].min(MAX_REFLECTANCE) > 1.0) {
+                if (0..3).any(|c| ks[c] + clamp_reflectance(kd[c]) > 1.0) {
                     warnings.push(format!(
                         "{file}:{line}: Ks + Kd of '{name}' exceeds 1 in a channel (the mirror would create light); Ks lowered to 1 − Kd"
                     ));

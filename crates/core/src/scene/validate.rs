@@ -8,10 +8,14 @@
 use std::collections::HashMap;
 use std::io::BufReader;
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
+use super::maps::{self, MapRequest, MapStatement, Slot};
 use super::specular::{SpecularScan, surface};
-use super::{Face, LoadOptions, MAX_REFLECTANCE, Material, MaterialId, Scene, SceneError, Surface};
+use super::{
+    CLAMPED_REFLECTANCE, Face, LoadOptions, MAX_REFLECTANCE, Material, MaterialId, Scene,
+    SceneError, Surface, UvTransform, clamp_reflectance,
+};
 use crate::geometry::polygon;
 
 /// Relative non-planarity (vertex distance from the best-fit plane over the face size)
@@ -22,6 +26,8 @@ const NON_PLANAR_TOLERANCE: f64 = 2.5e-3;
 /// What the OBJ pre-scan learned.
 struct ObjScan {
     face_lines: Vec<usize>,
+    /// Per face, whether every vertex names a texture coordinate.
+    face_uv: Vec<bool>,
     mtllibs: Vec<(String, usize)>,
     warnings: Vec<String>,
 }
@@ -85,6 +91,7 @@ fn scan_obj(file: &str, text: &str) -> Result<ObjScan, SceneError> {
     let (mut nv, mut nvt, mut nvn) = (0i64, 0i64, 0i64);
     let mut scan = ObjScan {
         face_lines: Vec::new(),
+        face_uv: Vec::new(),
         mtllibs: Vec::new(),
         warnings: Vec::new(),
     };
@@ -138,6 +145,10 @@ fn scan_obj(file: &str, text: &str) -> Result<ObjScan, SceneError> {
                     }
                 }
                 scan.face_lines.push(line);
+                scan.face_uv.push(
+                    args.iter()
+                        .all(|a| a.split('/').nth(1).is_some_and(|t| !t.is_empty())),
+                );
             }
             "mtllib" => {
                 if args.is_empty() {
@@ -166,79 +177,137 @@ fn scan_obj(file: &str, text: &str) -> Result<ObjScan, SceneError> {
     Ok(scan)
 }
 
-fn scan_mtl(file: &str, text: &str, warnings: &mut Vec<String>) -> Result<(), SceneError> {
-    let mut current: Option<String> = None;
+/// What the MTL pre-scan learned about one material.
+#[derive(Default)]
+struct MtlEntry {
+    name: String,
+    file: String,
+    kd: Option<([f64; 3], usize)>,
+    diffuse: Option<(MapStatement, usize)>,
+    alpha: Option<(MapStatement, usize)>,
+}
+
+/// A material name as a key: tobj keeps the text after `newmtl`, the scan its words.
+fn material_key(name: &str) -> String {
+    name.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Checks a colour statement (`Kd`, `Ka`, `Ks`, `Ke`, `Tf`): three non-negative numbers.
+fn colour(file: &str, line: usize, key: &str, args: &[&str]) -> Result<[f64; 3], SceneError> {
+    if args
+        .first()
+        .is_some_and(|w| *w == "spectral" || *w == "xyz")
+    {
+        return Err(parse_err(
+            file,
+            line,
+            format!("'{key} {}' is not supported; give r g b", args[0]),
+        ));
+    }
+    if args.len() != 3 {
+        let hint = if args.len() == 1 {
+            format!("; write '{key} {0} {0} {0}' for grey", args[0])
+        } else {
+            String::new()
+        };
+        return Err(parse_err(
+            file,
+            line,
+            format!(
+                "'{key}' needs 3 numbers (r g b), found {}{hint}",
+                args.len()
+            ),
+        ));
+    }
+    let v = numbers(file, line, key, args, 3, 3)?;
+    if v.iter().any(|x| *x < 0.0) {
+        return Err(parse_err(
+            file,
+            line,
+            format!(
+                "'{key}' values must not be negative, got {} {} {}",
+                v[0], v[1], v[2]
+            ),
+        ));
+    }
+    Ok([v[0], v[1], v[2]])
+}
+
+/// Parses a `map_Kd`/`map_d` statement, warning about the options that are ignored.
+fn map_statement(
+    file: &str,
+    line: usize,
+    key: &str,
+    args: &[&str],
+    warnings: &mut Vec<String>,
+) -> Result<MapStatement, SceneError> {
+    let m = maps::parse_map(args).map_err(|e| parse_err(file, line, format!("'{key}': {e}")))?;
+    if !m.ignored.is_empty() {
+        warnings.push(format!(
+            "{file}:{line}: '{key}' option(s) {} ignored (only -s and -o are applied)",
+            m.ignored.join(", ")
+        ));
+    }
+    Ok(m)
+}
+
+fn scan_mtl(
+    file: &str,
+    text: &str,
+    warnings: &mut Vec<String>,
+    entries: &mut HashMap<String, MtlEntry>,
+) -> Result<(), SceneError> {
+    let mut current: Option<MtlEntry> = None;
     let mut specular = SpecularScan::default();
+    let mut done: Vec<MtlEntry> = Vec::new();
     for (line, words) in statements(text) {
         let args = &words[1..];
         let key = words[0];
+        if key != "newmtl" && current.is_none() && is_material_statement(key) {
+            return Err(parse_err(
+                file,
+                line,
+                format!("'{key}' before any 'newmtl'"),
+            ));
+        }
         match key {
             "newmtl" => {
                 if args.is_empty() {
                     return Err(parse_err(file, line, "'newmtl' needs a material name"));
                 }
                 specular.finish(file, warnings);
-                current = Some(args.join(" "));
+                done.extend(current.take());
+                let name = args.join(" ");
+                current = Some(MtlEntry {
+                    name: name.clone(),
+                    file: file.to_string(),
+                    ..Default::default()
+                });
                 specular = SpecularScan {
-                    name: args.join(" "),
+                    name,
                     ..Default::default()
                 };
             }
             "Kd" | "Ka" | "Ks" | "Ke" | "Tf" => {
-                if current.is_none() {
-                    return Err(parse_err(
-                        file,
-                        line,
-                        format!("'{key}' before any 'newmtl'"),
-                    ));
-                }
-                if args
-                    .first()
-                    .is_some_and(|w| *w == "spectral" || *w == "xyz")
-                {
-                    return Err(parse_err(
-                        file,
-                        line,
-                        format!("'{key} {}' is not supported; give r g b", args[0]),
-                    ));
-                }
-                if args.len() != 3 {
-                    return Err(parse_err(
-                        file,
-                        line,
-                        format!(
-                            "'{key}' needs 3 numbers (r g b), found {}{}",
-                            args.len(),
-                            if args.len() == 1 {
-                                format!("; write '{key} {0} {0} {0}' for grey", args[0])
-                            } else {
-                                String::new()
-                            }
-                        ),
-                    ));
-                }
-                let v = numbers(file, line, key, args, 3, 3)?;
-                if v.iter().any(|x| *x < 0.0) {
-                    return Err(parse_err(
-                        file,
-                        line,
-                        format!(
-                            "'{key}' values must not be negative, got {} {} {}",
-                            v[0], v[1], v[2]
-                        ),
-                    ));
-                }
-                let name = current.clone().unwrap_or_default();
+                let v = colour(file, line, key, args)?;
                 if key == "Kd" {
-                    if v.iter().any(|x| *x > MAX_REFLECTANCE) {
-                        warnings.push(format!(
-                            "{file}:{line}: reflectance of '{name}' clamped to {MAX_REFLECTANCE} (ρ ≥ 1 never converges)"
-                        ));
+                    specular.kd = Some(v);
+                    if let Some(m) = current.as_mut() {
+                        m.kd = Some((v, line));
                     }
-                    specular.kd = Some([v[0], v[1], v[2]]);
                 }
                 if key == "Ks" {
-                    specular.ks = Some(([v[0], v[1], v[2]], line));
+                    specular.ks = Some((v, line));
+                }
+            }
+            k if k.eq_ignore_ascii_case("map_Kd") || k == "map_d" => {
+                let m = map_statement(file, line, key, args, warnings)?;
+                if let Some(entry) = current.as_mut() {
+                    if k == "map_d" {
+                        entry.alpha = Some((m, line));
+                    } else {
+                        entry.diffuse = Some((m, line));
+                    }
                 }
             }
             "Ns" | "Ni" | "d" | "Tr" | "illum" | "sharpness" => {
@@ -251,22 +320,75 @@ fn scan_mtl(file: &str, text: &str, warnings: &mut Vec<String>) -> Result<(), Sc
         }
     }
     specular.finish(file, warnings);
+    done.extend(current.take());
+    warnings.extend(clamp_warning(file, &done));
+    for m in done {
+        entries.insert(material_key(&m.name), m);
+    }
     Ok(())
+}
+
+/// Statements that belong to a material and so need a `newmtl` before them.
+fn is_material_statement(key: &str) -> bool {
+    matches!(key, "Kd" | "Ka" | "Ks" | "Ke" | "Tf")
+}
+
+/// One warning for a file's materials whose `Kd` was lowered (see [`clamp_reflectance`]).
+fn clamp_warning(file: &str, materials: &[MtlEntry]) -> Option<String> {
+    let (mut clamped, mut placeholder, mut lowered) = (Vec::new(), Vec::new(), Vec::new());
+    for m in materials {
+        let Some((kd, line)) = m.kd else { continue };
+        let named = format!("'{}' (line {line})", m.name);
+        if kd == [1.0; 3] && m.diffuse.is_some() {
+            placeholder.push(named);
+        } else if kd.iter().any(|&x| x >= 1.0) {
+            clamped.push(named);
+        } else if kd.iter().any(|&x| x > MAX_REFLECTANCE) {
+            lowered.push(named);
+        }
+    }
+    let mut parts = Vec::new();
+    if !clamped.is_empty() {
+        parts.push(format!(
+            "Kd channels >= 1 clamped to {CLAMPED_REFLECTANCE} in {}",
+            clamped.join(", ")
+        ));
+    }
+    if !placeholder.is_empty() {
+        parts.push(format!(
+            "Kd 1 1 1 with a map_Kd, probably a placeholder for a texture, clamped to {CLAMPED_REFLECTANCE} (the texture multiplies it) in {}",
+            placeholder.join(", ")
+        ));
+    }
+    if !lowered.is_empty() {
+        parts.push(format!(
+            "Kd lowered to {MAX_REFLECTANCE} in {}",
+            lowered.join(", ")
+        ));
+    }
+    (!parts.is_empty()).then(|| {
+        format!(
+            "{file}: reflectance of 1 or more never converges (the surface would reflect all the light it gets): {}",
+            parts.join("; ")
+        )
+    })
 }
 
 /// Returns (display name, text) of a named material library.
 pub(super) type MtlReader<'a> = dyn FnMut(&str) -> Result<(String, String), SceneError> + 'a;
 
 /// Loads OBJ text; `read_mtl` returns (display name, text) of a named material library.
+/// Also returns the texture maps the materials in use ask for (not read here).
 pub(super) fn load(
     file: &str,
     text: &str,
     read_mtl: &mut MtlReader,
     opts: &LoadOptions,
-) -> Result<Scene, SceneError> {
+) -> Result<(Scene, Vec<MapRequest>), SceneError> {
     let scan = scan_obj(file, text)?;
-    let mut warnings = scan.warnings;
+    let mut warnings = scan.warnings.clone();
     let mut mtl_texts: HashMap<String, String> = HashMap::new();
+    let mut entries: HashMap<String, MtlEntry> = HashMap::new();
     for (lib, line) in &scan.mtllibs {
         let (mtl_file, mtl_text) = read_mtl(lib).map_err(|e| match e {
             SceneError::Io { path, source } => parse_err(
@@ -276,7 +398,7 @@ pub(super) fn load(
             ),
             other => other,
         })?;
-        scan_mtl(&mtl_file, &mtl_text, &mut warnings)?;
+        scan_mtl(&mtl_file, &mtl_text, &mut warnings, &mut entries)?;
         mtl_texts.insert(lib.clone(), mtl_text);
     }
     if scan.face_lines.is_empty() {
@@ -285,7 +407,45 @@ pub(super) fn load(
             message: "no faces: the file is empty or has only points and lines".into(),
         });
     }
+    let (models, tmats) = parse(file, text, &scan, &mtl_texts)?;
+    let mut materials: Vec<Material> = tmats
+        .iter()
+        .map(|m| material(m, entries.get(&material_key(&m.name))))
+        .collect();
+    let built = build_faces(&models, &scan, &mut materials);
+    warnings.extend(built.warnings(file));
+    if built.faces.is_empty() {
+        return Err(SceneError::Invalid {
+            file: file.to_string(),
+            message: format!(
+                "no usable faces ({} zero-area face(s) dropped)",
+                built.dropped
+            ),
+        });
+    }
+    let requests = map_requests(&tmats, &entries, &built.faces);
+    let scene = Scene {
+        name: String::new(),
+        faces: built.faces,
+        materials,
+        two_sided: opts.two_sided,
+        camera: None,
+        warnings,
+        source: None,
+        textures: Vec::new(),
+        texture_bytes: 0,
+        lights: Vec::new(),
+    };
+    Ok((scene, requests))
+}
 
+/// `tobj`'s parse of the checked text: the models and the materials.
+fn parse(
+    file: &str,
+    text: &str,
+    scan: &ObjScan,
+    mtl_texts: &HashMap<String, String>,
+) -> Result<(Vec<tobj::Model>, Vec<tobj::Material>), SceneError> {
     let options = tobj::LoadOptions {
         single_index: false,
         triangulate: false,
@@ -311,63 +471,177 @@ pub(super) fn load(
         file: file.to_string(),
         message: format!("OBJ parse error: {e}"),
     })?;
-    let tmats = match materials {
-        Ok(m) => m,
-        Err(e) if scan.mtllibs.is_empty() => {
-            let _ = e;
-            Vec::new()
-        }
-        Err(e) => {
-            return Err(SceneError::Invalid {
-                file: file.to_string(),
-                message: format!("material library error: {e}"),
-            });
-        }
-    };
+    match materials {
+        Ok(m) => Ok((models, m)),
+        Err(_) if scan.mtllibs.is_empty() => Ok((models, Vec::new())),
+        Err(e) => Err(SceneError::Invalid {
+            file: file.to_string(),
+            message: format!("material library error: {e}"),
+        }),
+    }
+}
 
-    let mut materials: Vec<Material> = tmats
-        .iter()
-        .map(|m| {
-            let kd = m
-                .diffuse
-                .map_or(DVec3::splat(0.5), |d| DVec3::new(d[0], d[1], d[2]));
-            let ke = m
-                .emissive
-                .map_or(DVec3::ZERO, |d| DVec3::new(d[0], d[1], d[2]));
-            let reflectance = kd.clamp(DVec3::ZERO, DVec3::splat(MAX_REFLECTANCE));
-            Material {
-                name: m.name.clone(),
-                reflectance,
-                emission: ke,
-                surface: surface(m, reflectance),
-            }
-        })
-        .collect();
-    let mut default_material: Option<MaterialId> = None;
-    let mut faces = Vec::new();
-    let mut source_face = 0usize;
-    let mut no_material = 0usize;
-    let mut dropped = 0usize;
-    let mut split = 0usize;
-    for model in &models {
-        let mesh = &model.mesh;
-        let material = match mesh.material_id.filter(|&i| i < materials.len()) {
-            Some(i) => MaterialId(i as u32),
-            None => {
-                no_material += mesh.face_arities.len().max(usize::from(
-                    mesh.face_arities.is_empty() && !mesh.indices.is_empty(),
-                ));
-                *default_material.get_or_insert_with(|| {
-                    materials.push(Material {
-                        name: "default".into(),
-                        reflectance: DVec3::splat(0.5),
-                        emission: DVec3::ZERO,
-                        surface: Surface::Diffuse,
-                    });
-                    MaterialId(materials.len() as u32 - 1)
-                })
-            }
+/// A material from `tobj`'s and the pre-scan's view of it. Without `Kd`, a textured
+/// material reflects its texture (times [`CLAMPED_REFLECTANCE`]), an untextured one grey 0.5.
+fn material(m: &tobj::Material, entry: Option<&MtlEntry>) -> Material {
+    let textured = entry.is_some_and(|e| e.diffuse.is_some());
+    let default_kd = if textured { CLAMPED_REFLECTANCE } else { 0.5 };
+    let kd = m
+        .diffuse
+        .map_or(DVec3::splat(default_kd), |d| DVec3::new(d[0], d[1], d[2]));
+    let ke = m
+        .emissive
+        .map_or(DVec3::ZERO, |d| DVec3::new(d[0], d[1], d[2]));
+    let reflectance = DVec3::from_array(kd.to_array().map(clamp_reflectance));
+    let transform =
+        |map: Option<&(MapStatement, usize)>| map.map_or(UvTransform::default(), |m| m.0.transform);
+    Material {
+        name: m.name.clone(),
+        reflectance,
+        emission: ke,
+        surface: surface(m, reflectance),
+        diffuse_map: None,
+        alpha_map: None,
+        diffuse_uv: transform(entry.and_then(|e| e.diffuse.as_ref())),
+        alpha_uv: transform(entry.and_then(|e| e.alpha.as_ref())),
+    }
+}
+
+/// The maps of the materials some face uses, in material order.
+fn map_requests(
+    tmats: &[tobj::Material],
+    entries: &HashMap<String, MtlEntry>,
+    faces: &[Face],
+) -> Vec<MapRequest> {
+    let mut used = vec![false; tmats.len()];
+    for f in faces {
+        if let Some(u) = used.get_mut(f.material.0 as usize) {
+            *u = true;
+        }
+    }
+    let mut out = Vec::new();
+    for (i, m) in tmats.iter().enumerate().filter(|(i, _)| used[*i]) {
+        let Some(e) = entries.get(&material_key(&m.name)) else {
+            continue;
         };
+        for (slot, map) in [(Slot::Diffuse, &e.diffuse), (Slot::Alpha, &e.alpha)] {
+            if let Some((statement, line)) = map {
+                out.push(MapRequest {
+                    material: i,
+                    slot,
+                    name: statement.name.clone(),
+                    mtl_file: e.file.clone(),
+                    line: *line,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// The faces built from `tobj`'s meshes, and what was dropped or split on the way.
+#[derive(Default)]
+struct BuiltFaces {
+    faces: Vec<Face>,
+    no_material: usize,
+    dropped: usize,
+    split: usize,
+}
+
+impl BuiltFaces {
+    fn warnings(&self, file: &str) -> Vec<String> {
+        let mut w = Vec::new();
+        if self.no_material > 0 {
+            w.push(format!(
+                "{file}: {} face(s) have no known material; using grey reflectance 0.5",
+                self.no_material
+            ));
+        }
+        if self.dropped > 0 {
+            w.push(format!(
+                "{file}: dropped {} zero-area face(s)",
+                self.dropped
+            ));
+        }
+        if self.split > 0 {
+            w.push(format!(
+                "{file}: split {} non-planar face(s) into triangles",
+                self.split
+            ));
+        }
+        w
+    }
+
+    /// Adds one input polygon: dropped when degenerate, split into triangles when not planar.
+    fn push(&mut self, face: Face) {
+        let verts = &face.vertices;
+        let scale = verts
+            .iter()
+            .map(|p| (*p - verts[0]).length())
+            .fold(0.0, f64::max);
+        if verts.len() < 3 || polygon::area(verts) <= 1e-12 * scale * scale || scale == 0.0 {
+            self.dropped += 1;
+            return;
+        }
+        if polygon::planarity_error(verts) <= NON_PLANAR_TOLERANCE * scale {
+            self.faces.push(face);
+            return;
+        }
+        self.split += 1;
+        for t in polygon::triangulate(verts) {
+            let tri = Face {
+                vertices: t.map(|i| verts[i]).to_vec(),
+                uvs: face.uvs.as_ref().map(|uv| t.map(|i| uv[i]).to_vec()),
+                ..face.clone()
+            };
+            if polygon::area(&tri.vertices) > 1e-12 * scale * scale {
+                self.faces.push(tri);
+            }
+        }
+    }
+}
+
+/// The material of a mesh, adding the grey default material when it has none.
+fn mesh_material(
+    mesh: &tobj::Mesh,
+    materials: &mut Vec<Material>,
+    default: &mut Option<MaterialId>,
+) -> (MaterialId, bool) {
+    if let Some(i) = mesh.material_id.filter(|&i| i < materials.len()) {
+        return (MaterialId(i as u32), false);
+    }
+    let id = *default.get_or_insert_with(|| {
+        materials.push(Material {
+            name: "default".into(),
+            reflectance: DVec3::splat(0.5),
+            emission: DVec3::ZERO,
+            surface: Surface::Diffuse,
+            diffuse_map: None,
+            alpha_map: None,
+            diffuse_uv: UvTransform::default(),
+            alpha_uv: UvTransform::default(),
+        });
+        MaterialId(materials.len() as u32 - 1)
+    });
+    (id, true)
+}
+
+fn build_faces(
+    models: &[tobj::Model],
+    scan: &ObjScan,
+    materials: &mut Vec<Material>,
+) -> BuiltFaces {
+    let mut built = BuiltFaces::default();
+    let mut default_material: Option<MaterialId> = None;
+    let mut source_face = 0usize;
+    for model in models {
+        let mesh = &model.mesh;
+        let (material, is_default) = mesh_material(mesh, materials, &mut default_material);
+        if is_default {
+            built.no_material += mesh.face_arities.len().max(usize::from(
+                mesh.face_arities.is_empty() && !mesh.indices.is_empty(),
+            ));
+        }
         let arities: Vec<u32> = if mesh.face_arities.is_empty() {
             vec![3; mesh.indices.len() / 3]
         } else {
@@ -375,84 +649,55 @@ pub(super) fn load(
         };
         let mut at = 0usize;
         for arity in arities {
-            let idx = &mesh.indices[at..at + arity as usize];
+            let range = at..at + arity as usize;
             at += arity as usize;
-            let line = scan.face_lines.get(source_face).copied().unwrap_or(0);
-            let mut verts: Vec<DVec3> = Vec::with_capacity(idx.len());
-            for &i in idx {
-                let k = i as usize * 3;
-                let p = DVec3::new(
-                    mesh.positions[k],
-                    mesh.positions[k + 1],
-                    mesh.positions[k + 2],
-                );
-                if verts.last() != Some(&p) {
-                    verts.push(p);
-                }
-            }
-            while verts.len() > 1 && verts.first() == verts.last() {
-                verts.pop();
-            }
-            let this = source_face;
-            source_face += 1;
-            let scale = verts
-                .iter()
-                .map(|p| (*p - verts[0]).length())
-                .fold(0.0, f64::max);
-            if verts.len() < 3 || polygon::area(&verts) <= 1e-12 * scale * scale || scale == 0.0 {
-                dropped += 1;
-                continue;
-            }
-            if polygon::planarity_error(&verts) > NON_PLANAR_TOLERANCE * scale {
-                split += 1;
-                for t in polygon::triangulate(&verts) {
-                    let tri = vec![verts[t[0]], verts[t[1]], verts[t[2]]];
-                    if polygon::area(&tri) > 1e-12 * scale * scale {
-                        faces.push(Face {
-                            vertices: tri,
-                            material,
-                            source_face: this,
-                            line,
-                        });
-                    }
-                }
-                continue;
-            }
-            faces.push(Face {
-                vertices: verts,
+            let with_uv = scan.face_uv.get(source_face).copied().unwrap_or(false);
+            let (vertices, uvs) = polygon_of(mesh, range, with_uv);
+            built.push(Face {
+                vertices,
+                uvs,
                 material,
-                source_face: this,
-                line,
+                source_face,
+                line: scan.face_lines.get(source_face).copied().unwrap_or(0),
             });
+            source_face += 1;
         }
     }
-    if no_material > 0 {
-        warnings.push(format!(
-            "{file}: {no_material} face(s) have no known material; using grey reflectance 0.5"
-        ));
+    built
+}
+
+/// The vertices (and texture coordinates) of one face of a mesh, repeated vertices dropped.
+fn polygon_of(
+    mesh: &tobj::Mesh,
+    range: std::ops::Range<usize>,
+    with_uv: bool,
+) -> (Vec<DVec3>, Option<Vec<DVec2>>) {
+    let with_uv = with_uv && mesh.texcoord_indices.len() == mesh.indices.len();
+    let mut verts: Vec<DVec3> = Vec::with_capacity(range.len());
+    let mut uvs: Vec<DVec2> = Vec::with_capacity(range.len());
+    for k in range {
+        let i = mesh.indices[k] as usize * 3;
+        let p = DVec3::new(
+            mesh.positions[i],
+            mesh.positions[i + 1],
+            mesh.positions[i + 2],
+        );
+        if verts.last() == Some(&p) {
+            continue;
+        }
+        verts.push(p);
+        if with_uv {
+            let t = mesh.texcoord_indices[k] as usize * 2;
+            let uv = mesh
+                .texcoords
+                .get(t..t + 2)
+                .map_or(DVec2::ZERO, |c| DVec2::new(c[0], c[1]));
+            uvs.push(uv);
+        }
     }
-    if dropped > 0 {
-        warnings.push(format!("{file}: dropped {dropped} zero-area face(s)"));
+    while verts.len() > 1 && verts.first() == verts.last() {
+        verts.pop();
+        uvs.pop();
     }
-    if split > 0 {
-        warnings.push(format!(
-            "{file}: split {split} non-planar face(s) into triangles"
-        ));
-    }
-    if faces.is_empty() {
-        return Err(SceneError::Invalid {
-            file: file.to_string(),
-            message: format!("no usable faces ({dropped} zero-area face(s) dropped)"),
-        });
-    }
-    Ok(Scene {
-        name: String::new(),
-        faces,
-        materials,
-        two_sided: opts.two_sided,
-        camera: None,
-        warnings,
-        source: None,
-        lights: Vec::new(),
-    })
+    (verts, with_uv.then_some(uvs))
 }
