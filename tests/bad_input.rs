@@ -135,8 +135,14 @@ fn every_bad_file_has_its_message() {
 fn an_unlit_model_gets_default_lights_unless_refused() {
     let mut scene = Scene::load_obj(&bad("no_emitter.obj"), &LoadOptions::default())
         .expect("an unlit model loads");
-    let e = scene.check_lit().expect_err("nothing lights it").to_string();
-    assert!(e.contains("no_emitter.obj") && e.contains("no emitter"), "{e}");
+    let e = scene
+        .check_lit()
+        .expect_err("nothing lights it")
+        .to_string();
+    assert!(
+        e.contains("no_emitter.obj") && e.contains("no emitter"),
+        "{e}"
+    );
     let message = scene.add_default_lights().expect("lights added");
     assert!(message.contains("--no-default-lights"), "{message}");
     assert!(scene.check_lit().is_ok());

@@ -17,8 +17,13 @@ fn floor(half: f64) -> Scene {
         h = half
     );
     let mtl = format!("newmtl grey\nKd {RHO} {RHO} {RHO}\n");
-    Scene::from_obj_str("floor.obj", &obj, &[("f.mtl", &mtl)], &LoadOptions::default())
-        .expect("floor")
+    Scene::from_obj_str(
+        "floor.obj",
+        &obj,
+        &[("f.mtl", &mtl)],
+        &LoadOptions::default(),
+    )
+    .expect("floor")
 }
 
 fn solver(scene: Scene, size: f64) -> ProgressiveSolver {
@@ -122,7 +127,10 @@ fn a_sky_over_an_open_floor_gives_pi_l_and_nothing_in_a_closed_box() {
     converge(&mut s);
     // H = π L on an unoccluded plane facing up: B = ρ H / π = ρ L, every ray escapes.
     for b in s.element_radiance(false) {
-        assert!((b - DVec3::splat(RHO * 2.0)).abs().max_element() < 1e-12, "{b}");
+        assert!(
+            (b - DVec3::splat(RHO * 2.0)).abs().max_element() < 1e-12,
+            "{b}"
+        );
     }
     let furnace = Scene::builtin(
         "furnace",
@@ -174,7 +182,11 @@ fn a_wall_hides_the_sky_as_the_view_factor_says() {
         assert!(n > 100.0, "{n} elements at d = {d}");
         let wall = 0.5 * (1.0 - d / (d * d + 1.0f64).sqrt());
         let got = sum / n;
-        assert!((got - (1.0 - wall)).abs() < 0.03, "d {d}: sky {got} vs {}", 1.0 - wall);
+        assert!(
+            (got - (1.0 - wall)).abs() < 0.03,
+            "d {d}: sky {got} vs {}",
+            1.0 - wall
+        );
     }
 }
 
@@ -198,9 +210,14 @@ fn a_light_edit_converges_to_a_fresh_solve() {
     converge(&mut edited);
     let mut fresh = ProgressiveSolver::new(make(4e5), config).expect("solver");
     converge(&mut fresh);
-    let (a, b) = (edited.element_radiance(false), fresh.element_radiance(false));
+    let (a, b) = (
+        edited.element_radiance(false),
+        fresh.element_radiance(false),
+    );
     for (a, b) in a.iter().zip(&b) {
-        assert!((*a - *b).abs().max_element() < 1e-6 * b.max_element().max(1.0), "{a} {b}");
+        assert!(
+            (*a - *b).abs().max_element() < 1e-6 * b.max_element().max(1.0),
+            "{a} {b}"
+        );
     }
 }
-

@@ -57,8 +57,7 @@ impl ExternalLight {
     }
 
     pub fn is_empty(&self) -> bool {
-        (self.sky_fraction.is_empty() || self.sky_radiance == Rgb::ZERO)
-            && self.punctual.is_empty()
+        (self.sky_fraction.is_empty() || self.sky_radiance == Rgb::ZERO) && self.punctual.is_empty()
     }
 
     /// Computes both parts for every element of `mesh`; `bvh` is the solve's blocker BVH

@@ -30,10 +30,7 @@ const SUN_AZIMUTH_DEG: f64 = 30.0;
 
 /// The default sun's direction (+y up): elevation 55°, azimuth 30° from +z towards +x.
 pub fn default_sun_direction() -> DVec3 {
-    let (e, a) = (
-        SUN_ELEVATION_DEG.to_radians(),
-        SUN_AZIMUTH_DEG.to_radians(),
-    );
+    let (e, a) = (SUN_ELEVATION_DEG.to_radians(), SUN_AZIMUTH_DEG.to_radians());
     DVec3::new(e.cos() * a.sin(), e.sin(), e.cos() * a.cos())
 }
 
@@ -62,7 +59,11 @@ fn escape_fraction(scene: &Scene, bvh: &Bvh, epsilon: f64) -> f64 {
         };
         let area = polygon::area(&f.vertices);
         let c = polygon::centroid(&f.vertices);
-        let sides: &[f64] = if scene.two_sided { &[1.0, -1.0] } else { &[1.0] };
+        let sides: &[f64] = if scene.two_sided {
+            &[1.0, -1.0]
+        } else {
+            &[1.0]
+        };
         for &side in sides {
             let n = n * side;
             let mut rng = Rng::new(hash_seed(&[k as u64, side as u64]), 3);
@@ -114,7 +115,9 @@ impl Scene {
         } else {
             self.add_ceiling_light(&bvh)
         };
-        Some(format!("no light in the model: {added}; {DEFAULT_LIGHTS_HINT}"))
+        Some(format!(
+            "no light in the model: {added}; {DEFAULT_LIGHTS_HINT}"
+        ))
     }
 
     /// A square emitter facing down just under whatever is above the centre of the bounds,

@@ -193,7 +193,10 @@ impl SceneFile {
         for (name, edit) in &self.materials {
             let field = format!("materials.{name}");
             let Some(m) = scene.materials.iter_mut().find(|m| &m.name == name) else {
-                return Err(invalid(path, format!("{field}: the model has no such material")));
+                return Err(invalid(
+                    path,
+                    format!("{field}: the model has no such material"),
+                ));
             };
             if let Some(kd) = edit.kd {
                 let kd = colour(path, &format!("{field}.kd"), kd)?;
@@ -213,7 +216,10 @@ impl SceneFile {
                 vfov_deg: c.vfov_deg,
             };
             if !(c.vfov_deg > 0.0 && c.vfov_deg < 180.0) || camera.basis().is_none() {
-                return Err(invalid(path, "camera: needs eye ≠ target and 0 < vfov_deg < 180".into()));
+                return Err(invalid(
+                    path,
+                    "camera: needs eye ≠ target and 0 < vfov_deg < 180".into(),
+                ));
             }
             scene.camera = Some(camera);
         }
@@ -335,8 +341,12 @@ mod tests {
     #[test]
     fn a_scene_round_trips_through_its_file() {
         let mut scene = Scene::builtin("cornell", &LoadOptions::default()).unwrap();
-        scene.lights.push(Light::parse_sun("1,2,3,4,5,6,0.5").unwrap());
-        scene.lights.push(Light::parse_point("1,2,3,7,8,9").unwrap());
+        scene
+            .lights
+            .push(Light::parse_sun("1,2,3,4,5,6,0.5").unwrap());
+        scene
+            .lights
+            .push(Light::parse_point("1,2,3,7,8,9").unwrap());
         let corners = vec![
             DVec3::new(0.0, 500.0, 0.0),
             DVec3::new(100.0, 500.0, 0.0),
@@ -345,7 +355,9 @@ mod tests {
         scene.add_area_light(corners.clone(), Rgb::splat(5.0));
         scene.materials[0].reflectance = Rgb::new(0.1, 0.2, 0.3);
         let path = temp("round.json");
-        SceneFile::describe(&scene, None, &path).save(&path).unwrap();
+        SceneFile::describe(&scene, None, &path)
+            .save(&path)
+            .unwrap();
         let back = SceneFile::read(&path).unwrap().load(&path).unwrap();
         assert_eq!(back.lights.len(), 2);
         for (a, b) in back.lights.iter().zip(&scene.lights) {
@@ -368,10 +380,22 @@ mod tests {
             "{\"builtin\": \"cornell\", \"lights\": [{\"type\": \"sun\", \"direction\": [0,0,0], \"irradiance\": [1,1,1]}]}",
         )
         .unwrap();
-        let e = SceneFile::read(&path).unwrap().load(&path).unwrap_err().to_string();
+        let e = SceneFile::read(&path)
+            .unwrap()
+            .load(&path)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("lights[0].direction"), "{e}");
-        std::fs::write(&path, "{\"builtin\": \"cornell\", \"materials\": {\"nope\": {}}}").unwrap();
-        let e = SceneFile::read(&path).unwrap().load(&path).unwrap_err().to_string();
+        std::fs::write(
+            &path,
+            "{\"builtin\": \"cornell\", \"materials\": {\"nope\": {}}}",
+        )
+        .unwrap();
+        let e = SceneFile::read(&path)
+            .unwrap()
+            .load(&path)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("materials.nope"), "{e}");
     }
 }

@@ -20,11 +20,8 @@ mod camera;
 mod default_lights;
 pub mod file;
 pub mod gallery;
-<<<<<<< HEAD
 pub mod lights;
-=======
 mod maps;
->>>>>>> textures
 mod specular;
 pub mod texture;
 #[cfg(test)]
@@ -33,15 +30,12 @@ mod texturing;
 mod validate;
 
 pub use camera::Camera;
-<<<<<<< HEAD
 pub use default_lights::DEFAULT_LIGHTS_HINT;
 pub use file::{SceneFile, is_scene_file};
 pub use lights::{Light, LightError};
-=======
 pub use maps::{UvTransform, resolve_texture_path};
 pub use texture::{Texture, TextureId};
 pub use texturing::TextureMean;
->>>>>>> textures
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -159,16 +153,13 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// The OBJ file this came from, if any.
     pub source: Option<PathBuf>,
-<<<<<<< HEAD
     /// Light sources that are not faces: sky, suns, point lights ([`lights`]).
     pub lights: Vec<Light>,
-=======
     /// The texture maps materials refer to ([`TextureId`] indexes them); read only by
     /// [`Scene::load_obj`], each distinct file once.
     pub textures: Vec<Arc<Texture>>,
     /// Memory held by `textures`, in bytes.
     pub texture_bytes: usize,
->>>>>>> textures
 }
 
 #[derive(Clone, Debug, Default)]
@@ -458,13 +449,23 @@ impl Scene {
             reflectance: Rgb::splat(0.5),
             emission,
             surface: Surface::Diffuse,
+            diffuse_map: None,
+            alpha_map: None,
+            diffuse_uv: UvTransform::default(),
+            alpha_uv: UvTransform::default(),
         });
-        let source_face = self.faces.iter().map(|f| f.source_face + 1).max().unwrap_or(0);
+        let source_face = self
+            .faces
+            .iter()
+            .map(|f| f.source_face + 1)
+            .max()
+            .unwrap_or(0);
         self.faces.push(Face {
             vertices: corners,
             material: id,
             source_face,
             line: 0,
+            uvs: None,
         });
         id
     }

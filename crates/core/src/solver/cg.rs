@@ -76,14 +76,10 @@ fn ratio(a: Rgb, b: Rgb) -> Rgb {
     Rgb::new(f(a.x, b.x), f(a.y, b.y), f(a.z, b.z))
 }
 
-fn material(p: &Problem, k: usize) -> &crate::scene::Material {
-    &p.scene.materials[p.mesh.patches[k].material.0 as usize]
-}
-
 /// `(I − ρF) x`.
 fn apply(p: &Problem, matrix: &PatchMatrix, x: &[Rgb]) -> Vec<Rgb> {
     (0..x.len())
-        .map(|k| x[k] - material(p, k).reflectance * matrix.gather(k, x))
+        .map(|k| x[k] - p.patch_rho(k) * matrix.gather(k, x))
         .collect()
 }
 
@@ -100,9 +96,7 @@ impl Iteration for BiCgStab {
             Some(k) => k,
             None => {
                 let ax = apply(p, matrix, b);
-                let r: Vec<Rgb> = (0..ax.len())
-                    .map(|i| p.patch_source(i) - ax[i])
-                    .collect();
+                let r: Vec<Rgb> = (0..ax.len()).map(|i| p.patch_source(i) - ax[i]).collect();
                 let norm0 = norm(&r);
                 if norm0 == 0.0 {
                     self.converged = true;

@@ -94,13 +94,11 @@ impl Iteration for Relaxation {
     }
 
     fn iterate(&mut self, p: &Problem, matrix: &PatchMatrix, b: &mut [Rgb]) -> bool {
-        let material = |k: usize| &p.scene.materials[p.mesh.patches[k].material.0 as usize];
         match self.method {
             GatherMethod::Jacobi => {
                 let old = b.to_vec();
                 for (k, bk) in b.iter_mut().enumerate() {
-                    let m = material(k);
-                    *bk = p.patch_source(k) + m.reflectance * matrix.gather(k, &old);
+                    *bk = p.patch_source(k) + p.patch_rho(k) * matrix.gather(k, &old);
                 }
             }
             GatherMethod::GaussSeidel | GatherMethod::Sor(_) => {
@@ -109,8 +107,7 @@ impl Iteration for Relaxation {
                     _ => 1.0,
                 };
                 for k in 0..b.len() {
-                    let m = material(k);
-                    let gs = p.patch_source(k) + m.reflectance * matrix.gather(k, b);
+                    let gs = p.patch_source(k) + p.patch_rho(k) * matrix.gather(k, b);
                     b[k] = b[k] * (1.0 - w) + gs * w;
                 }
             }

@@ -129,9 +129,9 @@ impl PatchMatrix {
             .iter()
             .enumerate()
             .map(|(p, patch)| {
-                let m = &problem.scene.materials[patch.material.0 as usize];
-                channel_sum(problem.patch_source(p) + m.reflectance * self.gather(p, b) - b[p])
-                    * patch.area
+                channel_sum(
+                    problem.patch_source(p) + problem.patch_rho(p) * self.gather(p, b) - b[p],
+                ) * patch.area
             })
             .sum();
         relative(r, emitted)
@@ -322,12 +322,12 @@ impl<I: Iteration> Solver for MatrixSolver<I> {
         let problem = &self.problem;
         let mut r_max: f64 = 0.0;
         let mut rho_max: f64 = 0.0;
-        for (p, patch) in problem.mesh.patches.iter().enumerate() {
-            let m = &problem.scene.materials[patch.material.0 as usize];
-            let r = problem.patch_source(p) + m.reflectance * self.matrix.gather(p, &self.patch_b)
+        for p in 0..problem.mesh.patches.len() {
+            let r = problem.patch_source(p)
+                + problem.patch_rho(p) * self.matrix.gather(p, &self.patch_b)
                 - self.patch_b[p];
             r_max = r_max.max(r.abs().max_element());
-            rho_max = rho_max.max(m.reflectance.max_element());
+            rho_max = rho_max.max(problem.patch_rho(p).max_element());
         }
         super::residual_error_estimate(problem, &self.radiosity, &self.patch_b, r_max, rho_max)
     }

@@ -24,6 +24,11 @@ pub struct Problem {
     pub external: ExternalLight,
     /// The same, area-averaged over each patch.
     patch_external: Vec<Rgb>,
+    /// Per element, the mean colour of its material's diffuse texture over the element
+    /// (what `Kd` is multiplied by); empty when no material has a texture.
+    element_texture: Vec<Rgb>,
+    /// The same, area-averaged over each patch.
+    patch_texture: Vec<Rgb>,
 }
 
 impl Problem {
@@ -69,9 +74,72 @@ impl Problem {
             epsilon,
             external: ExternalLight::default(),
             patch_external: Vec::new(),
+            element_texture: Vec::new(),
+            patch_texture: Vec::new(),
         };
+        problem.texture_elements();
         problem.light_elements();
         Ok(problem)
+    }
+
+    /// Computes each element's and patch's mean texture colour (Kd's multiplier): the
+    /// texture's mean over the element's area, in texture space.
+    fn texture_elements(&mut self) {
+        use rayon::prelude::*;
+        let textured = self.scene.materials.iter().any(|m| m.diffuse_map.is_some());
+        if !textured {
+            self.element_texture = Vec::new();
+            self.patch_texture = Vec::new();
+            return;
+        }
+        let scene = &self.scene;
+        self.element_texture = self
+            .mesh
+            .elements
+            .par_iter()
+            .map(|e| {
+                scene
+                    .texture_mean(e.face as usize, e.corners())
+                    .map_or(Rgb::ONE, |t| t.rgb)
+            })
+            .collect();
+        self.patch_texture = self.patch_means(&self.element_texture);
+    }
+
+    /// Area-weighted mean over each patch's elements of a per-element value.
+    fn patch_means(&self, values: &[Rgb]) -> Vec<Rgb> {
+        self.mesh
+            .patches
+            .iter()
+            .map(|p| {
+                let sum: Rgb = (p.elements.start..p.elements.end)
+                    .map(|e| values[e as usize] * self.mesh.elements[e as usize].area)
+                    .sum();
+                if p.area > 0.0 {
+                    sum / p.area
+                } else {
+                    Rgb::ZERO
+                }
+            })
+            .collect()
+    }
+
+    /// Reflectance of patch `p`: its material's `Kd` times its texture's mean.
+    pub fn patch_rho(&self, p: usize) -> Rgb {
+        let m = &self.scene.materials[self.mesh.patches[p].material.0 as usize];
+        match self.patch_texture.get(p) {
+            Some(t) => m.reflectance * *t,
+            None => m.reflectance,
+        }
+    }
+
+    /// Reflectance of element `e`: its material's `Kd` times its texture's mean.
+    pub fn element_rho(&self, e: usize) -> Rgb {
+        let m = self.material_of(self.mesh.elements[e].patch);
+        match self.element_texture.get(e) {
+            Some(t) => m.reflectance * *t,
+            None => m.reflectance,
+        }
     }
 
     /// Computes what the lights that are not faces give each element and patch.
@@ -84,16 +152,10 @@ impl Problem {
         self.patch_external = if self.external.is_empty() {
             Vec::new()
         } else {
-            self.mesh
-                .patches
-                .iter()
-                .map(|p| {
-                    let sum: Rgb = (p.elements.start..p.elements.end)
-                        .map(|e| self.external.at(e as usize) * self.mesh.elements[e as usize].area)
-                        .sum();
-                    if p.area > 0.0 { sum / p.area } else { Rgb::ZERO }
-                })
-                .collect()
+            let at: Vec<Rgb> = (0..self.mesh.elements.len())
+                .map(|e| self.external.at(e))
+                .collect();
+            self.patch_means(&at)
         };
     }
 
@@ -108,7 +170,7 @@ impl Problem {
     pub fn patch_source(&self, p: usize) -> Rgb {
         let m = &self.scene.materials[self.mesh.patches[p].material.0 as usize];
         match self.patch_external.get(p) {
-            Some(h) => m.emission + m.reflectance * *h,
+            Some(h) => m.emission + self.patch_rho(p) * *h,
             None => m.emission,
         }
     }
@@ -116,7 +178,7 @@ impl Problem {
     /// What element `e` sends before any reflection (see [`Problem::patch_source`]).
     pub fn element_source(&self, e: usize) -> Rgb {
         let m = self.material_of(self.mesh.elements[e].patch);
-        m.emission + m.reflectance * self.external.at(e)
+        m.emission + self.element_rho(e) * self.external.at(e)
     }
 
     /// Rebuilds the mesh with a new element size (and the BVH's visibility groups).
@@ -136,6 +198,7 @@ impl Problem {
         self.mesh = mesh;
         self.config.element_size = Some(element_size);
         self.external = ExternalLight::default();
+        self.texture_elements();
         self.light_elements();
         Ok(())
     }
@@ -157,7 +220,8 @@ impl Problem {
         self.mesh
             .patches
             .iter()
-            .map(|q| self.scene.materials[q.material.0 as usize].reflectance)
+            .enumerate()
+            .map(|(k, _)| self.patch_rho(k))
             .collect()
     }
 
@@ -173,7 +237,8 @@ impl Problem {
         self.mesh
             .elements
             .iter()
-            .map(|e| self.material_of(e.patch).reflectance)
+            .enumerate()
+            .map(|(k, _)| self.element_rho(k))
             .collect()
     }
 

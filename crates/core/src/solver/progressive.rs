@@ -244,7 +244,7 @@ impl ProgressiveSolver {
             .zip(&self.problem.mesh.patches)
             .enumerate()
         {
-            let rho = self.problem.scene.materials[p.material.0 as usize].reflectance;
+            let rho = self.problem.patch_rho(i);
             let power = channel_sum(*u + rho * ambient) * p.area;
             if power > 0.0 && best.is_none_or(|b| power > b.0 * (1.0 + SHOOTER_TIE)) {
                 best = Some((power, i));
@@ -268,7 +268,7 @@ impl ProgressiveSolver {
         if cancel.load(Ordering::Relaxed) {
             return None;
         }
-        let overshoot = self.problem.material_of(shooter).reflectance * basis;
+        let overshoot = self.problem.patch_rho(shooter.0 as usize) * basis;
         let delta = self.unshot[shooter.0 as usize] + overshoot;
         self.unshot[shooter.0 as usize] = -overshoot;
         // Receiving patches in parallel: each owns its elements' slices (elements are
@@ -369,7 +369,8 @@ impl ProgressiveSolver {
             if p.material != id {
                 continue;
             }
-            let new = emission + reflectance * (self.incident[j] + self.problem.external.at(j));
+            let new =
+                emission + self.element_rho[j] * (self.incident[j] + self.problem.external.at(j));
             gained[e.patch.0 as usize] += (new - self.radiosity[j]) * e.area;
             self.radiosity[j] = new;
         }
@@ -409,11 +410,18 @@ impl ProgressiveSolver {
     pub fn power_balance(&self) -> (Rgb, Rgb) {
         let mut emitted = Rgb::ZERO;
         let mut absorbed = Rgb::ZERO;
-        for (k, (e, h)) in self.problem.mesh.elements.iter().zip(&self.incident).enumerate() {
+        for (k, (e, h)) in self
+            .problem
+            .mesh
+            .elements
+            .iter()
+            .zip(&self.incident)
+            .enumerate()
+        {
             let m = self.problem.material_of(e.patch);
             let external = self.problem.external.at(k);
             emitted += (m.emission + external) * e.area;
-            absorbed += (Rgb::ONE - m.reflectance) * (*h + external) * e.area;
+            absorbed += (Rgb::ONE - self.problem.element_rho(k)) * (*h + external) * e.area;
         }
         (emitted, absorbed)
     }

@@ -14,8 +14,15 @@ impl ProgressiveSolver {
         }
         let mut rho = Rgb::ZERO;
         let mut unshot = Rgb::ZERO;
-        for (p, u) in self.problem.mesh.patches.iter().zip(&self.unshot) {
-            rho += self.problem.scene.materials[p.material.0 as usize].reflectance * p.area;
+        for (k, (p, u)) in self
+            .problem
+            .mesh
+            .patches
+            .iter()
+            .zip(&self.unshot)
+            .enumerate()
+        {
+            rho += self.problem.patch_rho(k) * p.area;
             unshot += *u * p.area;
         }
         let rho_avg = rho / self.total_area;
@@ -31,9 +38,8 @@ impl ProgressiveSolver {
             .get_or_init(|| RegionalAmbient::build(&self.problem));
         let patches = &self.problem.mesh.patches;
         let area: Vec<f64> = patches.iter().map(|p| p.area).collect();
-        let rho: Vec<Rgb> = patches
-            .iter()
-            .map(|p| self.problem.scene.materials[p.material.0 as usize].reflectance)
+        let rho: Vec<Rgb> = (0..patches.len())
+            .map(|k| self.problem.patch_rho(k))
             .collect();
         regional.incoming(&area, &self.unshot, &rho)
     }
