@@ -105,6 +105,7 @@ fn image_of(s: &ProgressiveSolver, camera: Camera, width: u32, height: u32, spp:
         mesh: s.mesh(),
         vertex_radiance: &vertex,
         bvh: &bvh,
+        texture: s.problem().element_texture(),
     };
     render::render_solution(
         &view,

@@ -44,6 +44,7 @@ pub(super) fn render_elements(
         mesh: &problem.mesh,
         vertex_radiance: &vertex,
         bvh,
+        texture: &[],
     };
     let settings = RenderSettings {
         width: 256,

@@ -39,6 +39,7 @@
 //!     mesh: solver.mesh(),
 //!     vertex_radiance: &vertex,
 //!     bvh: &bvh,
+//!     texture: &[],
 //! };
 //! let camera = render::view::default_camera(solver.scene()); // the scene's own, here
 //! let settings = RenderSettings { width: 32, height: 32, spp: 1, camera, seed: 1, edge_spp: 0 };

@@ -199,6 +199,7 @@ fn run(slot: &Slot, latest: &Latest<Arc<RayImage>>, waker: &Waker) {
             mesh: &problem.mesh,
             vertex_radiance: &vertex,
             bvh: &bvh,
+            texture: problem.element_texture(),
         };
         let lights = DirectLight::new(&problem.scene, &problem.mesh, &problem.bvh, problem.epsilon);
         let mut job = first;

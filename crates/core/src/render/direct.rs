@@ -282,6 +282,7 @@ impl<'a> Prepared<'a> {
             mesh: &self.problem.mesh,
             vertex_radiance: &self.vertex,
             bvh: &self.bvh,
+            texture: self.problem.element_texture(),
         };
         render(&view, &self.lights, settings)
     }

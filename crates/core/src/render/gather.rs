@@ -42,6 +42,7 @@ pub fn render_solution(
         mesh: &problem.mesh,
         vertex_radiance: &vertex,
         bvh: &bvh,
+        texture: problem.element_texture(),
     };
     let lights = DirectLight::new(&problem.scene, &problem.mesh, &problem.bvh, problem.epsilon);
     let per_sample = (rays_per_pixel / settings.spp.max(1)).max(1);
@@ -105,7 +106,12 @@ fn shade(
         let d = cosine_hemisphere(n, u1.min(1.0 - 1e-12), u2);
         gathered += seen(view, &Ray::new(p + n * epsilon, d), sky);
     }
-    material.emission + material.reflectance * (direct + gathered / rays as f64)
+    let e = view.mesh.triangle_element[hit.id as usize].0 as usize;
+    let rho = match view.texture_ratio(e, p) {
+        Some(ratio) => material.reflectance * view.texture[e] * ratio,
+        None => material.reflectance,
+    };
+    material.emission + rho * (direct + gathered / rays as f64)
 }
 
 #[cfg(test)]
@@ -151,6 +157,7 @@ mod tests {
             mesh: &problem.mesh,
             vertex_radiance: &vertex,
             bvh: &bvh,
+            texture: &[],
         };
         // 16 samples, so that the direct pass shares a plane through its quadrants.
         let sixteen = RenderSettings {

@@ -57,6 +57,25 @@ pub struct SolutionView<'a> {
     pub mesh: &'a Mesh,
     pub vertex_radiance: &'a [Rgb],
     pub bvh: &'a Bvh,
+    /// Per element, the mean of its diffuse texture ([`crate::solver::Problem::element_texture`]);
+    /// empty: untextured display.
+    pub texture: &'a [Rgb],
+}
+
+impl SolutionView<'_> {
+    /// The texel's colour over the element's mean at point `x` of element `e`: what the
+    /// solution's reflected light is multiplied by to show the texture under the computed
+    /// light, `E + ρ(x) H(x)` with `ρ(x) = Kd · texel(x)`. `None` where untextured.
+    pub fn texture_ratio(&self, e: usize, x: glam::DVec3) -> Option<Rgb> {
+        let mean = *self.texture.get(e)?;
+        let (texel, _alpha) = self.scene.texel(self.mesh.elements[e].face as usize, x)?;
+        let ratio = |t: f64, m: f64| if m > 1e-9 { t / m } else { 1.0 };
+        Some(Rgb::new(
+            ratio(texel.x, mean.x),
+            ratio(texel.y, mean.y),
+            ratio(texel.z, mean.z),
+        ))
+    }
 }
 
 /// BVH over the mesh's display triangles (ids = display triangle index).
@@ -85,7 +104,10 @@ fn shade(view: &SolutionView, ray: &Ray) -> FirstHit {
         return FirstHit::Surface(Rgb::ZERO); // the unlit back of a one-sided face
     }
     let [a, b, c] = tri.map(|v| view.vertex_radiance[v as usize]);
-    let radiance = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
+    let mut radiance = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
+    if let Some(ratio) = view.texture_ratio(element.0 as usize, ray.at(hit.t)) {
+        radiance = material.emission + (radiance - material.emission) * ratio;
+    }
     if material.is_emitter() {
         // An emitter that also reflects shows its radiosity `E + ρH` (its display group
         // holds faces of its own material only, so nothing else is interpolated into it);
@@ -153,6 +175,7 @@ pub(crate) fn pixel_samples(x: u32, y: u32, spp: u32, seed: u64, mut f: impl FnM
 ///     mesh: solver.mesh(),
 ///     vertex_radiance: &vertex,
 ///     bvh: &bvh,
+///     texture: &[],
 /// };
 /// let camera = Camera {
 ///     eye: DVec3::new(0.5, 1.5, 2.0),

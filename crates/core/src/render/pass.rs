@@ -60,6 +60,7 @@ impl Pass {
                     mesh: &problem.mesh,
                     vertex_radiance: &vertex,
                     bvh: &bvh,
+                    texture: problem.element_texture(),
                 };
                 render_solution(&view, settings)
             }

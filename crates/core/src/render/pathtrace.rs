@@ -142,6 +142,11 @@ impl<'a> PathTracer<'a> {
             let (face, geometric) = self.tri_face[hit.id as usize];
             let m = &self.scene.materials[self.scene.faces[face].material.0 as usize];
             let x = ray.at(hit.t);
+            // ρ(x) = Kd · texel(x) where the material has a diffuse texture.
+            let rho = match self.scene.texel(face, x) {
+                Some((texel, _)) => m.reflectance * texel,
+                None => m.reflectance,
+            };
             let d = ray.dir.try_normalize().unwrap_or(DVec3::Z);
             // After a diffuse bounce, without caustics: glass absorbs, a mirror is its Kd.
             let diffuse_only = !self.caustics && !count_emission;
@@ -174,7 +179,7 @@ impl<'a> PathTracer<'a> {
                 result += throughput * m.emission;
             }
             // Next-event estimation.
-            result += throughput * m.reflectance * self.direct(x, n, rng);
+            result += throughput * rho * self.direct(x, n, rng);
             let specular_lobe = match m.surface {
                 Surface::Mirror { ks } => Some((ks, None)),
                 Surface::Glossy { ks, exponent } => Some((ks, Some(exponent))),
@@ -184,7 +189,7 @@ impl<'a> PathTracer<'a> {
                 && !diffuse_only
             {
                 // One lobe, chosen by its weight.
-                let (wd, ws) = (m.reflectance.max_element(), ks.max_element());
+                let (wd, ws) = (rho.max_element(), ks.max_element());
                 if rng.next_f64() * (wd + ws) < ws {
                     let mirror = optics::reflect(d, n);
                     let dir = match exponent {
@@ -213,7 +218,7 @@ impl<'a> PathTracer<'a> {
             count_emission = false;
             bounced = true;
             // Continue.
-            throughput *= m.reflectance;
+            throughput *= rho;
             if depth >= 3 {
                 let q = throughput.max_element().min(0.95);
                 if q <= 0.0 || rng.next_f64() >= q {

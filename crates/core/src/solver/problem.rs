@@ -124,6 +124,11 @@ impl Problem {
             .collect()
     }
 
+    /// Per element, the mean of its diffuse texture (empty when nothing is textured).
+    pub fn element_texture(&self) -> &[Rgb] {
+        &self.element_texture
+    }
+
     /// Reflectance of patch `p`: its material's `Kd` times its texture's mean.
     pub fn patch_rho(&self, p: usize) -> Rgb {
         let m = &self.scene.materials[self.mesh.patches[p].material.0 as usize];

@@ -320,12 +320,21 @@ fn see(view: &SolutionView, ray: &Ray) -> Seen {
         return Seen::Emitter(material.emission);
     }
     let [a, b, c] = tri.map(|v| view.vertex_radiance[v as usize]);
+    let p = ray.at(hit.t);
+    let mut indirect = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
+    let mut rho = material.reflectance;
+    let e = view.mesh.triangle_element[hit.id as usize].0 as usize;
+    if let Some(ratio) = view.texture_ratio(e, p) {
+        // ρ(x) = Kd · texel(x); the interpolated reflected light follows the texel too.
+        rho *= view.texture[e] * ratio;
+        indirect = material.emission + (indirect - material.emission) * ratio;
+    }
     Seen::Surface {
-        p: ray.at(hit.t),
+        p,
         n: element.normal,
         own: patch.occluder,
-        rho: material.reflectance,
-        indirect: a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v,
+        rho,
+        indirect,
     }
 }
 

@@ -232,6 +232,7 @@ fn a_glass_slab_of_index_one_is_invisible() {
             mesh: &mesh,
             vertex_radiance: &zero,
             bvh: &bvh,
+            texture: &[],
         };
         let landed = |ray: &Ray, _: &mut Rng| {
             bvh.closest_hit(ray, 0.0, f64::INFINITY)
@@ -442,6 +443,7 @@ fn diffuse_scenes_render_exactly_as_before() {
         mesh: &problem.mesh,
         vertex_radiance: &vertex,
         bvh: &bvh,
+        texture: &[],
     };
     let settings = from_the_cornell_camera(16);
     let before = vertex_image(&problem, &radiance, &settings);
