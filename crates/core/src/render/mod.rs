@@ -75,6 +75,7 @@ impl SolutionView<'_> {
             ratio(texel.y, mean.y),
             ratio(texel.z, mean.z),
         ))
+        .filter(|r| r.is_finite())
     }
 }
 

@@ -98,9 +98,12 @@ impl Problem {
             .elements
             .par_iter()
             .map(|e| {
+                // A degenerate element's mean can be undefined: it keeps its Kd.
                 scene
                     .texture_mean(e.face as usize, e.corners())
-                    .map_or(Rgb::ONE, |t| t.rgb)
+                    .map(|t| t.rgb)
+                    .filter(|t| t.is_finite())
+                    .unwrap_or(Rgb::ONE)
             })
             .collect();
         self.patch_texture = self.patch_means(&self.element_texture);
