@@ -221,3 +221,39 @@ fn a_light_edit_converges_to_a_fresh_solve() {
         );
     }
 }
+
+#[test]
+fn a_window_pane_passes_its_transmittance_of_the_sun_and_sky() {
+    // A floor under a glass pane (MTL illum 4, Ni 1.5) twice its size: the sun through it
+    // gives the thin slab's transmittance of the open value (exact: one pane, any angle),
+    // the sky between t and 1 of it (rays past the pane's edge escape freely).
+    let obj = "mtllib m.mtl\nusemtl grey\nv 1 0 1\nv 1 0 -1\nv -1 0 -1\nv -1 0 1\nf 4 1 2 3\n\
+        usemtl glass\nv 2 1 2\nv 2 1 -2\nv -2 1 -2\nv -2 1 2\nf 8 5 6 7\n";
+    let mtl = format!("newmtl grey\nKd {RHO} {RHO} {RHO}\nnewmtl glass\nKd 0 0 0\nillum 4\nNi 1.5\n");
+    let mut scene =
+        Scene::from_obj_str("pane.obj", obj, &[("m.mtl", &mtl)], &LoadOptions::default())
+            .expect("pane");
+    let t = nusselt_core::formfactor::lights::slab_transmittance(1.5);
+    assert!((t - 0.923).abs() < 1e-3, "{t}");
+    let sun = DVec3::new(0.2, 1.0, 0.1).normalize();
+    scene.lights.push(Light::Sun {
+        direction: sun,
+        irradiance: DVec3::ONE,
+        angular_radius: 0.0,
+    });
+    scene.lights.push(Light::Sky {
+        radiance: DVec3::ONE,
+    });
+    let s = solver(scene, 0.25);
+    let p = s.problem();
+    for (k, e) in p.mesh.elements.iter().enumerate() {
+        if e.normal.y < 0.9 || e.centroid.y.abs() > 1e-9 {
+            continue;
+        }
+        let open = sun.y / PI;
+        let got = p.external.punctual[k].x;
+        assert!((got - t * open).abs() < 1e-12, "sun {got} vs {}", t * open);
+        let sky = p.external.sky(k).x;
+        assert!(sky >= t - 1e-12 && sky <= 1.0 && sky < 0.99, "sky {sky}");
+    }
+}

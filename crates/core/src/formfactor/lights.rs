@@ -17,11 +17,72 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
+use crate::geometry::bvh::TriangleInput;
 use crate::geometry::sampling::{cosine_hemisphere, hash_seed, triangle_point};
-use crate::geometry::{Bvh, Ray, Rng};
+use crate::geometry::{Bvh, Ray, Rng, polygon};
 use crate::mesh::{Element, Mesh};
 use crate::scene::lights::{has_punctual, punctual_incident, sky_radiance};
-use crate::scene::{Light, Rgb};
+use crate::scene::{Light, Rgb, Scene, Surface};
+
+/// Windows for the light of skies, suns and points: faces of glass materials are thin
+/// panes whose visibility is their transmittance. A ray the solve's blockers stop is tested
+/// again against the opaque faces alone; if only glass stopped it, it carries the thin
+/// slab's transmittance `(1 − R)² / (1 − R²)`, `R = ((n − 1)/(n + 1))²` at normal incidence
+/// (0.923 for n = 1.5), whatever the number of panes and the angle (both err high: two
+/// panes or a grazing ray let through less).
+#[derive(Default)]
+pub struct GlassVisibility {
+    opaque: Option<Bvh>,
+    transmittance: f64,
+}
+
+/// A thin pane's transmittance at normal incidence with its two surfaces' interreflections.
+pub fn slab_transmittance(ior: f64) -> f64 {
+    let r = ((ior - 1.0) / (ior + 1.0)).powi(2);
+    (1.0 - r) * (1.0 - r) / (1.0 - r * r)
+}
+
+impl GlassVisibility {
+    /// The opaque faces of `scene` as `mesh` groups them; nothing if there is no glass.
+    pub fn new(scene: &Scene, mesh: &Mesh) -> Self {
+        let glass = |m: usize| matches!(scene.materials[m].surface, Surface::Glass { .. });
+        let Some(ior) = scene.materials.iter().find_map(|m| match m.surface {
+            Surface::Glass { ior } => Some(ior),
+            _ => None,
+        }) else {
+            return Self::default();
+        };
+        let mut input = Vec::new();
+        for (i, f) in scene.faces.iter().enumerate() {
+            if glass(f.material.0 as usize) {
+                continue;
+            }
+            for t in polygon::triangulate(&f.vertices) {
+                input.push(TriangleInput {
+                    vertices: [f.vertices[t[0]], f.vertices[t[1]], f.vertices[t[2]]],
+                    id: mesh.face_occluder[i],
+                    cull_back: false,
+                });
+            }
+        }
+        Self {
+            opaque: Some(Bvh::build(&input)),
+            transmittance: slab_transmittance(ior),
+        }
+    }
+
+    /// The fraction of light along `ray` up to `t_max` that `blockers` (all faces) and the
+    /// windows let through.
+    pub fn visibility(&self, blockers: &Bvh, ray: &Ray, t_max: f64, ignore: [u32; 2]) -> f64 {
+        if !blockers.any_hit_except(ray, 0.0, t_max, ignore) {
+            return 1.0;
+        }
+        match &self.opaque {
+            Some(opaque) if !opaque.any_hit_except(ray, 0.0, t_max, ignore) => self.transmittance,
+            _ => 0.0,
+        }
+    }
+}
 
 /// Points per element at which suns and point lights are evaluated.
 pub const POINTS: usize = 4;
@@ -62,20 +123,33 @@ impl ExternalLight {
 
     /// Computes both parts for every element of `mesh`; `bvh` is the solve's blocker BVH
     /// (ids: occluder groups), `epsilon` the offset of ray origins.
-    pub fn compute(lights: &[Light], mesh: &Mesh, bvh: &Bvh, epsilon: f64) -> Self {
+    pub fn compute(lights: &[Light], scene: &Scene, mesh: &Mesh, bvh: &Bvh, epsilon: f64) -> Self {
         let mut light = Self::default();
-        light.update(lights, mesh, bvh, epsilon);
+        light.update(lights, scene, mesh, bvh, epsilon);
         light
     }
 
     /// Recomputes for new `lights` on the same mesh: the sky fractions only the first time
     /// a sky is on, the suns and points every time (a few shadow rays per element).
-    pub fn update(&mut self, lights: &[Light], mesh: &Mesh, bvh: &Bvh, epsilon: f64) {
+    pub fn update(
+        &mut self,
+        lights: &[Light],
+        scene: &Scene,
+        mesh: &Mesh,
+        bvh: &Bvh,
+        epsilon: f64,
+    ) {
         let n = mesh.elements.len();
+        let glass = if lights.iter().any(Light::is_on) {
+            GlassVisibility::new(scene, mesh)
+        } else {
+            GlassVisibility::default()
+        };
         let at = |k: usize| Probe {
             element: &mesh.elements[k],
             own: mesh.patch(mesh.elements[k].patch).occluder,
             bvh,
+            glass: &glass,
             epsilon,
             seed: hash_seed(&[k as u64, 0x11647]),
         };
@@ -104,6 +178,7 @@ struct Probe<'a> {
     element: &'a Element,
     own: u32,
     bvh: &'a Bvh,
+    glass: &'a GlassVisibility,
     epsilon: f64,
     seed: u64,
 }
@@ -125,10 +200,11 @@ impl Probe<'_> {
         }
     }
 
-    fn blocked(&self, x: DVec3, dir: DVec3, t_max: f64) -> bool {
+    /// What a ray from `x` along `dir` lets through before `t_max` (windows included).
+    fn visible(&self, x: DVec3, dir: DVec3, t_max: f64) -> f64 {
         let ray = Ray::new(x + self.element.normal * self.epsilon, dir);
-        self.bvh
-            .any_hit_except(&ray, 0.0, t_max, [self.own, u32::MAX])
+        self.glass
+            .visibility(self.bvh, &ray, t_max, [self.own, u32::MAX])
     }
 
     fn punctual(&self, lights: &[Light]) -> Rgb {
@@ -138,7 +214,7 @@ impl Probe<'_> {
         for k in 0..POINTS {
             let x = self.point(k);
             let u = (rng.next_f64(), rng.next_f64());
-            sum += punctual_incident(lights, x, n, u, &|d, t| self.blocked(x, d, t));
+            sum += punctual_incident(lights, x, n, u, &|d, t| self.visible(x, d, t));
         }
         sum / POINTS as f64
     }
@@ -147,18 +223,16 @@ impl Probe<'_> {
     fn sky_fraction(&self, side: usize) -> f64 {
         let mut rng = Rng::new(self.seed, 2);
         let n = self.element.normal;
-        let mut escaped = 0usize;
+        let mut escaped = 0.0;
         for i in 0..side {
             for j in 0..side {
                 let u1 = (i as f64 + rng.next_f64()) / side as f64;
                 let u2 = (j as f64 + rng.next_f64()) / side as f64;
                 let x = self.point((i * side + j) % POINTS);
                 let d = cosine_hemisphere(n, u1, u2);
-                if !self.blocked(x, d, f64::INFINITY) {
-                    escaped += 1;
-                }
+                escaped += self.visible(x, d, f64::INFINITY);
             }
         }
-        escaped as f64 / (side * side) as f64
+        escaped / (side * side) as f64
     }
 }

@@ -58,6 +58,8 @@ pub struct DirectLight<'a> {
     lights: Vec<Light>,
     /// The scene's suns and point lights, evaluated per pixel with one shadow ray each.
     punctual: Vec<crate::scene::Light>,
+    /// Their light through windows, as the solve sees it.
+    glass: crate::formfactor::lights::GlassVisibility,
     /// The solver's blocker BVH (ids: occluder groups).
     blockers: &'a Bvh,
     epsilon: f64,
@@ -100,15 +102,21 @@ impl<'a> DirectLight<'a> {
                 })
             })
             .collect();
-        let punctual = scene
+        let punctual: Vec<crate::scene::Light> = scene
             .lights
             .iter()
             .filter(|l| !matches!(l, crate::scene::Light::Sky { .. }))
             .copied()
             .collect();
+        let glass = if punctual.is_empty() {
+            crate::formfactor::lights::GlassVisibility::default()
+        } else {
+            crate::formfactor::lights::GlassVisibility::new(scene, mesh)
+        };
         Self {
             lights,
             punctual,
+            glass,
             blockers,
             epsilon,
         }
@@ -122,8 +130,8 @@ impl<'a> DirectLight<'a> {
         let origin = p + n * self.epsilon;
         let u = (rng.next_f64(), rng.next_f64());
         crate::scene::lights::punctual_incident(&self.punctual, p, n, u, &|d, t| {
-            self.blockers
-                .any_hit_except(&Ray::new(origin, d), 0.0, t, [own, u32::MAX])
+            self.glass
+                .visibility(self.blockers, &Ray::new(origin, d), t, [own, u32::MAX])
         })
     }
 

@@ -278,7 +278,11 @@ impl<'a> PathTracer<'a> {
         let origin = x + n * self.epsilon;
         let u = (rng.next_f64(), rng.next_f64());
         crate::scene::lights::punctual_incident(&self.punctual, x, n, u, &|d, t| {
-            self.bvh.any_hit(&Ray::new(origin, d), 1e-9, t)
+            if self.bvh.any_hit(&Ray::new(origin, d), 1e-9, t) {
+                0.0
+            } else {
+                1.0
+            }
         })
     }
 

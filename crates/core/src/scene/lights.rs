@@ -195,14 +195,15 @@ pub fn cone_direction(axis: DVec3, radius: f64, u1: f64, u2: f64) -> DVec3 {
 }
 
 /// Irradiance over π at `x` (unit normal `n`) from the suns and point lights of `lights`.
-/// `blocked(origin, dir, t_max)` tells whether a shadow ray from `x` along unit `dir` hits
-/// something before `t_max` (∞ for a sun); `u` are two uniforms for a soft sun's direction.
+/// `visible(dir, t_max)` is the fraction of light a shadow ray from `x` along unit `dir`
+/// lets through before `t_max` (∞ for a sun): 0 blocked, 1 free, a window's transmittance
+/// between; `u` are two uniforms for a soft sun's direction.
 pub fn punctual_incident(
     lights: &[Light],
     x: DVec3,
     n: DVec3,
     u: (f64, f64),
-    blocked: &dyn Fn(DVec3, f64) -> bool,
+    visible: &dyn Fn(DVec3, f64) -> f64,
 ) -> Rgb {
     let mut sum = Rgb::ZERO;
     for l in lights {
@@ -214,8 +215,8 @@ pub fn punctual_incident(
             } => {
                 let s = cone_direction(direction, angular_radius, u.0, u.1);
                 let cos = n.dot(s);
-                if cos > 0.0 && irradiance.max_element() > 0.0 && !blocked(s, f64::INFINITY) {
-                    sum += irradiance * (cos / std::f64::consts::PI);
+                if cos > 0.0 && irradiance.max_element() > 0.0 {
+                    sum += irradiance * (cos * visible(s, f64::INFINITY) / std::f64::consts::PI);
                 }
             }
             Light::Point {
@@ -226,8 +227,8 @@ pub fn punctual_incident(
                 let r2 = d.length_squared();
                 let Some(w) = d.try_normalize() else { continue };
                 let cos = n.dot(w);
-                if cos > 0.0 && intensity.max_element() > 0.0 && !blocked(w, r2.sqrt()) {
-                    sum += intensity * (cos / (std::f64::consts::PI * r2));
+                if cos > 0.0 && intensity.max_element() > 0.0 {
+                    sum += intensity * (cos * visible(w, r2.sqrt()) / (std::f64::consts::PI * r2));
                 }
             }
             Light::Sky { .. } => {}
@@ -268,7 +269,7 @@ mod tests {
 
     #[test]
     fn sun_and_point_follow_the_cosine_and_inverse_square_laws() {
-        let open = |_: DVec3, _: f64| false;
+        let open = |_: DVec3, _: f64| 1.0;
         let sun = Light::Sun {
             direction: DVec3::new(0.0, 1.0, 1.0).normalize(),
             irradiance: Rgb::splat(2.0),
@@ -284,7 +285,7 @@ mod tests {
         let h = punctual_incident(&[point], DVec3::ZERO, DVec3::Y, (0.5, 0.5), &open);
         // I cosθ / r² = 25 · 0.8 / 25.
         assert!((h.x - 0.8 / std::f64::consts::PI).abs() < 1e-12, "{h}");
-        let shut = |_: DVec3, _: f64| true;
+        let shut = |_: DVec3, _: f64| 0.0;
         assert_eq!(
             punctual_incident(&[sun, point], DVec3::ZERO, DVec3::Y, (0.5, 0.5), &shut),
             Rgb::ZERO

@@ -155,8 +155,13 @@ impl Problem {
         if self.external.sky_fraction.len() != self.mesh.elements.len() {
             self.external = ExternalLight::default();
         }
-        self.external
-            .update(&self.scene.lights, &self.mesh, &self.bvh, self.epsilon);
+        self.external.update(
+            &self.scene.lights,
+            &self.scene,
+            &self.mesh,
+            &self.bvh,
+            self.epsilon,
+        );
         self.patch_external = if self.external.is_empty() {
             Vec::new()
         } else {
