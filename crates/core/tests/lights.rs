@@ -229,7 +229,8 @@ fn a_window_pane_passes_its_transmittance_of_the_sun_and_sky() {
     // the sky between t and 1 of it (rays past the pane's edge escape freely).
     let obj = "mtllib m.mtl\nusemtl grey\nv 1 0 1\nv 1 0 -1\nv -1 0 -1\nv -1 0 1\nf 4 1 2 3\n\
         usemtl glass\nv 2 1 2\nv 2 1 -2\nv -2 1 -2\nv -2 1 2\nf 8 5 6 7\n";
-    let mtl = format!("newmtl grey\nKd {RHO} {RHO} {RHO}\nnewmtl glass\nKd 0 0 0\nillum 4\nNi 1.5\n");
+    let mtl =
+        format!("newmtl grey\nKd {RHO} {RHO} {RHO}\nnewmtl glass\nKd 0 0 0\nillum 4\nNi 1.5\n");
     let mut scene =
         Scene::from_obj_str("pane.obj", obj, &[("m.mtl", &mtl)], &LoadOptions::default())
             .expect("pane");

@@ -31,6 +31,7 @@ pub enum Action {
     ClearRecent,
     SaveMtl,
     SaveMtlAs,
+    SaveScene,
     ResetEdits,
     ExportPly,
     ExportPng,
@@ -146,6 +147,12 @@ pub fn menu_bar(ui: &mut egui::Ui, state: &PanelState, actions: &mut Vec<Action>
             }
             if ui.button("Save materials as…").clicked() {
                 actions.push(Action::SaveMtlAs);
+            }
+            if ui
+                .button("Save scene (JSON: model, lights, camera, materials)")
+                .clicked()
+            {
+                actions.push(Action::SaveScene);
             }
             if ui.button("Reset edits").clicked() {
                 actions.push(Action::ResetEdits);

@@ -34,6 +34,17 @@ impl ViewerApp {
                     self.save_mtl(&s, &path);
                 }
             }
+            Action::SaveScene => {
+                if let Some(s) = self.snapshot.clone() {
+                    let path = match &s.scene_source {
+                        Some(obj) => obj.with_extension("scene.json"),
+                        None => PathBuf::from(format!("{}.scene.json", s.scene_name)),
+                    };
+                    let camera = self.camera.as_ref().map(|c| c.to_camera());
+                    self.message(false, format!("saving {}", path.display()));
+                    self.solver.queue(Command::SaveScene { path, camera });
+                }
+            }
             Action::SaveMtlAs => {
                 if let Some(s) = self.snapshot.clone() {
                     let mut r = Request::new(Purpose::SaveMtlAs, ("MTL", "mtl"), true);

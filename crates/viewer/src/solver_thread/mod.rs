@@ -70,6 +70,11 @@ pub enum Command {
     ResetMaterials,
     /// The new list of skies, suns and point lights (incremental: no restart).
     SetLights(Vec<nusselt_core::scene::Light>),
+    /// Write the scene as it is now (model, lights, camera, materials) to a scene file.
+    SaveScene {
+        path: std::path::PathBuf,
+        camera: Option<nusselt_core::scene::Camera>,
+    },
     /// Switch the form-factor method (restarts the solve).
     SetMethod(FormFactorMethod),
     /// Switch the solver, keeping the mesh and cached rows (restarts from dark). Refused

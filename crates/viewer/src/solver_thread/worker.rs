@@ -399,6 +399,18 @@ impl Worker {
                 reflectance,
                 emission,
             } => self.set_material(material, Rgb::from(reflectance), Rgb::from(emission)),
+            Command::SaveScene { path, camera } => {
+                if let Some(s) = self.solver.as_ref() {
+                    let scene = &s.problem().scene;
+                    let file = nusselt_core::scene::SceneFile::describe(scene, camera, &path);
+                    match file.save(&path) {
+                        Ok(()) => {
+                            self.send_event(Event::Notice(format!("saved {}", path.display())))
+                        }
+                        Err(e) => self.send_event(Event::Error(format!("save scene: {e}"))),
+                    }
+                }
+            }
             Command::SetLights(lights) => {
                 if let Some(s) = self.solver.as_mut() {
                     s.set_lights(lights);
