@@ -126,14 +126,14 @@ pub fn lights_section(ui: &mut egui::Ui, snap: &Snapshot, actions: &mut Vec<Acti
             ui.horizontal(|ui| {
                 if ui.button("+ sky").clicked() {
                     lights.push(Light::Sky {
-                        radiance: Rgb::splat(0.8),
+                        radiance: Rgb::splat(nusselt_core::scene::DEFAULT_SKY),
                     });
                     changed = true;
                 }
                 if ui.button("+ sun").clicked() {
                     lights.push(Light::Sun {
-                        direction: glam::DVec3::new(0.287, 0.819, 0.497),
-                        irradiance: Rgb::splat(3.0),
+                        direction: nusselt_core::scene::default_sun_direction(),
+                        irradiance: Rgb::splat(nusselt_core::scene::DEFAULT_SUN),
                         angular_radius: 0.0,
                     });
                     changed = true;

@@ -30,7 +30,7 @@ mod texturing;
 mod validate;
 
 pub use camera::Camera;
-pub use default_lights::DEFAULT_LIGHTS_HINT;
+pub use default_lights::{DEFAULT_LIGHTS_HINT, DEFAULT_SKY, DEFAULT_SUN, default_sun_direction};
 pub use file::{SceneFile, is_scene_file};
 pub use lights::{Light, LightError};
 pub use maps::{UvTransform, resolve_texture_path};
