@@ -422,3 +422,39 @@ fn view_solver_flags_are_checked() {
     );
     refused(&with(&["--projector"]), "--teach");
 }
+
+#[test]
+fn bad_lights_are_refused_before_any_work() {
+    let fast = Duration::from_secs(20);
+    for (flag, value, expected) in [
+        ("--sun", "0,0,0,1,1,1", "--sun 0,0,0,1,1,1: the direction X,Y,Z must not be zero"),
+        ("--sun", "0,1,0,1,-1,1", "non-negative"),
+        ("--point", "0,1,0,1,1", "expected 6 numbers, got 5"),
+        ("--sky", "1,nan,1", "not a finite number"),
+    ] {
+        refused_within(
+            &["render", "--builtin", "gallery", flag, value, "--out", "/tmp/x.png"],
+            expected,
+            fast,
+        );
+    }
+}
+
+#[test]
+fn an_unlit_model_is_refused_only_when_asked() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let obj = dir.path().join("dark.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 1 0 1\nf 1 3 2\n").expect("obj");
+    let obj = obj.to_str().expect("utf-8 path");
+    refused(
+        &["render", obj, "--no-default-lights", "--out", "/tmp/x.png"],
+        "no emitter",
+    );
+    let out = dir.path().join("dark.png");
+    let (ok, stderr) = nusselt_within(
+        &["render", obj, "--width", "16", "--height", "16", "--out", out.to_str().unwrap()],
+        Duration::from_secs(120),
+    );
+    assert!(ok, "{stderr}");
+    assert!(stderr.contains("no light in the model: added a sky"), "{stderr}");
+}
