@@ -427,13 +427,25 @@ fn view_solver_flags_are_checked() {
 fn bad_lights_are_refused_before_any_work() {
     let fast = Duration::from_secs(20);
     for (flag, value, expected) in [
-        ("--sun", "0,0,0,1,1,1", "--sun 0,0,0,1,1,1: the direction X,Y,Z must not be zero"),
+        (
+            "--sun",
+            "0,0,0,1,1,1",
+            "--sun 0,0,0,1,1,1: the direction X,Y,Z must not be zero",
+        ),
         ("--sun", "0,1,0,1,-1,1", "non-negative"),
         ("--point", "0,1,0,1,1", "expected 6 numbers, got 5"),
         ("--sky", "1,nan,1", "not a finite number"),
     ] {
         refused_within(
-            &["render", "--builtin", "gallery", flag, value, "--out", "/tmp/x.png"],
+            &[
+                "render",
+                "--builtin",
+                "gallery",
+                flag,
+                value,
+                "--out",
+                "/tmp/x.png",
+            ],
             expected,
             fast,
         );
@@ -452,9 +464,21 @@ fn an_unlit_model_is_refused_only_when_asked() {
     );
     let out = dir.path().join("dark.png");
     let (ok, stderr) = nusselt_within(
-        &["render", obj, "--width", "16", "--height", "16", "--out", out.to_str().unwrap()],
+        &[
+            "render",
+            obj,
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--out",
+            out.to_str().unwrap(),
+        ],
         Duration::from_secs(120),
     );
     assert!(ok, "{stderr}");
-    assert!(stderr.contains("no light in the model: added a sky"), "{stderr}");
+    assert!(
+        stderr.contains("no light in the model: added a sky"),
+        "{stderr}"
+    );
 }
