@@ -477,3 +477,60 @@ fn a_surface_made_a_light_and_back_converges_to_the_original() {
         "made a light and back: differs from the original by {rel}"
     );
 }
+
+#[test]
+fn a_sun_added_while_running_converges_to_a_fresh_solve() {
+    // The Cornell box open at the front (its front has no wall): a sun from the camera's
+    // side shines in. Added mid-run, it converges from the current state to the fresh solve.
+    let stop = 1e-7;
+    let sun = nusselt_core::scene::Light::Sun {
+        direction: glam::DVec3::new(0.2, 0.3, -1.0).normalize_or_zero(),
+        irradiance: glam::DVec3::splat(20.0),
+        angular_radius: 0.0,
+    };
+    let (mut h, _) = spawn(
+        cornell(),
+        ThreadConfig {
+            solver: coarse_config(),
+            play: true,
+            stop_unshot: stop,
+            max_shots: None,
+            shot_threads: None,
+            kind: SolverKind::Shooting,
+        },
+    );
+    let deadline = Instant::now() + Duration::from_secs(240);
+    let before = first_snapshot(&h, deadline, |s| s.stats.steps >= 20);
+    send(&h, Command::SetLights(vec![sun]), deadline);
+    let converged = first_snapshot(&h, deadline, |s| {
+        check_finite(s);
+        s.lights.len() == 1 && s.stats.converged
+    });
+    assert!(
+        converged.stats.steps > before.stats.steps,
+        "the light must not restart the solve from dark"
+    );
+    h.shutdown(Duration::from_secs(30));
+
+    let mut scene = cornell();
+    scene.lights.push(sun);
+    let mut fresh = ProgressiveSolver::new(scene, coarse_config()).expect("solver");
+    let never = std::sync::atomic::AtomicBool::new(false);
+    fresh.run(
+        &StopCriteria {
+            unshot: stop,
+            ..Default::default()
+        },
+        &never,
+        &mut |_| {},
+    );
+    assert!(
+        fresh.problem().external.punctual.iter().any(|h| h.x > 0.0),
+        "the sun reaches into the box"
+    );
+    let fresh_corners = converged
+        .geometry
+        .expand(&fresh.mesh().vertex_values(&fresh.element_radiance(false)));
+    let rel = rel_l2(&converged.radiance, &fresh_corners, &converged.geometry);
+    assert!(rel < 5e-3, "sun added vs fresh solve differ by {rel}");
+}
