@@ -297,10 +297,16 @@ impl eframe::App for ViewerApp {
                 .collect()
         });
         for p in dropped {
-            if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")) {
+            let known = |e: &std::ffi::OsStr| {
+                e.eq_ignore_ascii_case("obj") || e.eq_ignore_ascii_case("json")
+            };
+            if p.extension().is_some_and(known) {
                 self.handle(ctx, Action::Open(p));
             } else {
-                self.message(true, format!("{}: not an .obj file", p.display()));
+                self.message(
+                    true,
+                    format!("{}: not an .obj model or .json scene file", p.display()),
+                );
             }
         }
         self.run_edits(ctx);

@@ -32,11 +32,15 @@ pub struct Request {
 }
 
 impl Request {
-    /// A dialog with one filter (`(name, extension)`), no default name or folder.
+    /// A dialog with one filter (`(name, extensions)`, extensions comma-separated), no
+    /// default name or folder.
     pub fn new(purpose: Purpose, filter: (&str, &str), save: bool) -> Request {
         Request {
             purpose,
-            filter: (filter.0.to_string(), vec![filter.1.to_string()]),
+            filter: (
+                filter.0.to_string(),
+                filter.1.split(',').map(str::to_string).collect(),
+            ),
             save,
             file_name: None,
             directory: None,

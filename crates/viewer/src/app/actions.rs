@@ -14,7 +14,11 @@ impl ViewerApp {
             Action::Teach(t) => self.solver.queue(Command::Teach(t)),
             Action::OpenDialog => self.open_dialog(
                 ctx,
-                Request::new(Purpose::Open, ("Wavefront OBJ", "obj"), false),
+                Request::new(
+                    Purpose::Open,
+                    ("OBJ model or scene file", "obj,json"),
+                    false,
+                ),
             ),
             Action::Open(p) => {
                 self.message(false, format!("opening {}", p.display()));
