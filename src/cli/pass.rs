@@ -68,7 +68,12 @@ pub struct Chosen {
 impl Chosen {
     /// One line for the user: what was chosen and why.
     pub fn describe(&self) -> Option<String> {
-        let (estimate, budget) = (self.estimate?, self.budget?);
+        let budget = self.budget?;
+        let Some(estimate) = self.estimate else {
+            return Some(format!(
+                "pass: vertex (the solve used the whole {budget} s budget; --time-budget or --pass direct for the direct pass)"
+            ));
+        };
         Some(match self.pass {
             Pass::Direct => format!(
                 "pass: direct (about {estimate:.1} s, within the {budget} s budget; --pass vertex is faster)"
@@ -83,7 +88,8 @@ impl Chosen {
 /// Renders the image `choice` asks for after the solve (`started`: the run's start;
 /// `gather_rays`: for `--pass gather`): for `auto`, the direct pass's per-solution work is
 /// done once, a probe of 1/16 of the pixels is timed, and the direct pass is taken when the
-/// run so far plus the probe's time scaled to the image fits the budget.
+/// run so far plus the probe's time scaled to the image fits the budget; when the run so
+/// far has used the budget already, the vertex pass without a probe.
 pub fn render_chosen(
     choice: PassChoice,
     started: Instant,
@@ -104,6 +110,17 @@ pub fn render_chosen(
         }
         PassChoice::Auto { budget } => budget,
     };
+    // Preparing the direct pass computes every light patch's form-factor row: minutes on a
+    // large mesh, so not even tried once the budget is spent.
+    if started.elapsed().as_secs_f64() >= budget {
+        let image = Pass::Vertex.render(problem, radiance, settings, gather_rays);
+        let chosen = Chosen {
+            pass: Pass::Vertex,
+            estimate: None,
+            budget: Some(budget),
+        };
+        return (chosen, image);
+    }
     let direct = render::direct::Prepared::new(problem, radiance);
     let probe = RenderSettings {
         width: settings.width.div_ceil(PROBE_SCALE),
