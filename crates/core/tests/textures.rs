@@ -143,3 +143,66 @@ fn the_image_shows_the_texel_under_the_computed_light() {
         );
     }
 }
+
+#[test]
+fn a_closed_room_of_white_placeholders_converges() {
+    // Kd 1 1 1 everywhere (as in models whose colour lives in textures): clamped to 0.95 with
+    // one warning, so the closed box converges; plain shooting needs about
+    // ln(1e-4)/ln(0.95) ≈ 180 sweeps' worth of shots at most, the overshooting far fewer.
+    let dir = tempfile::tempdir().expect("temp dir");
+    let obj = "mtllib w.mtl\nusemtl white\n\
+        v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+        f 1 2 3 4\nf 5 8 7 6\nf 1 5 6 2\nf 1 4 8 5\nf 2 6 7 3\nusemtl light\nf 4 3 7 8\n";
+    std::fs::write(dir.path().join("w.obj"), obj).expect("obj");
+    std::fs::write(
+        dir.path().join("w.mtl"),
+        "newmtl white\nKd 1 1 1\nnewmtl light\nKd 1 1 1\nKe 1 1 1\n",
+    )
+    .expect("mtl");
+    let scene = Scene::load_obj(&dir.path().join("w.obj"), &LoadOptions::default()).expect("box");
+    let warning = scene.warnings.join("\n");
+    assert!(warning.contains("clamped to 0.95"), "{warning}");
+    assert!(
+        scene
+            .materials
+            .iter()
+            .all(|m| m.reflectance == DVec3::splat(0.95))
+    );
+    let mut s = ProgressiveSolver::new(
+        scene,
+        SolverConfig {
+            element_size: Some(0.1),
+            patch_size: Some(0.2),
+            ..Default::default()
+        },
+    )
+    .expect("solver");
+    let patches = s.mesh().patches.len();
+    let stop = StopCriteria {
+        unshot: 1e-4,
+        max_shots: Some(180 * patches),
+        ..Default::default()
+    };
+    s.run(&stop, &AtomicBool::new(false), &mut |_| {});
+    assert!(
+        s.unshot_fraction() <= 1e-4,
+        "unshot {}",
+        s.unshot_fraction()
+    );
+    // Closed: Σ B A = Σ E A / (1 − ρ) = 20 over the 6 faces. Rows that miss a fraction ε of
+    // the enclosure (the form factors' error, ≤ 1 % here) lower it to 1/(1 − ρ(1 − ε)): at
+    // most 16 % below; nothing can raise it.
+    let b = s.element_radiance(true);
+    let area: f64 = s.mesh().elements.iter().map(|e| e.area).sum();
+    let mean: f64 = b
+        .iter()
+        .zip(&s.mesh().elements)
+        .map(|(b, e)| b.x * e.area)
+        .sum::<f64>()
+        / area;
+    let exact = 20.0 / 6.0;
+    assert!(
+        mean <= exact * 1.001 && mean >= exact * 0.84,
+        "mean radiance {mean} vs {exact}"
+    );
+}
