@@ -82,6 +82,14 @@ pub struct SceneArgs {
     /// An isotropic point light at X,Y,Z of intensity R,G,B (W sr⁻¹); repeat for several.
     #[arg(long, value_name = "X,Y,Z,R,G,B", allow_hyphen_values = true)]
     pub point: Vec<String>,
+    /// A square area light of side SIZE centred at X,Y,Z facing NX,NY,NZ, of radiance
+    /// R,G,B (an emitting face like the model's own); repeat for several.
+    #[arg(
+        long,
+        value_name = "X,Y,Z,NX,NY,NZ,SIZE,R,G,B",
+        allow_hyphen_values = true
+    )]
+    pub area: Vec<String>,
     /// Refuse a model that nothing lights instead of adding default lights (a sky and a
     /// sun where rays leave it, else an area light under its ceiling).
     #[arg(long)]
@@ -124,6 +132,11 @@ impl SceneArgs {
 
     pub fn load(&self) -> Result<Scene> {
         let lights = self.lights()?;
+        let areas = self
+            .area
+            .iter()
+            .map(|a| nusselt_core::scene::lights::parse_area(a))
+            .collect::<Result<Vec<_>, _>>()?;
         let opts = LoadOptions {
             two_sided: self.two_sided,
             rho: self.rho,
@@ -147,6 +160,9 @@ impl SceneArgs {
         }
         let mut scene = scene;
         scene.lights.extend(lights);
+        for (corners, radiance) in areas {
+            scene.add_area_light(corners, radiance);
+        }
         if self.no_default_lights {
             scene.check_lit()?;
         } else if let Some(message) = scene.add_default_lights() {

@@ -164,6 +164,35 @@ impl Light {
     }
 }
 
+/// `X,Y,Z,NX,NY,NZ,SIZE,R,G,B`: the corners of a square emitter of side SIZE centred at
+/// X,Y,Z facing NX,NY,NZ, and its radiance R,G,B (for [`super::Scene::add_area_light`]).
+pub fn parse_area(text: &str) -> Result<(Vec<DVec3>, Rgb), LightError> {
+    let flag = "--area";
+    let v = numbers(flag, text, &[10])?;
+    let err = |message: &str| LightError {
+        flag,
+        text: text.to_string(),
+        message: message.into(),
+    };
+    let n = DVec3::new(v[3], v[4], v[5])
+        .try_normalize()
+        .ok_or_else(|| err("the normal NX,NY,NZ must not be zero"))?;
+    if v[6] <= 0.0 {
+        return Err(err("the size must be positive"));
+    }
+    let c = DVec3::new(v[0], v[1], v[2]);
+    let (t, b) = crate::geometry::sampling::basis(n);
+    let h = 0.5 * v[6];
+    // Counter-clockwise seen from the side `n` points to: t × b = n.
+    let corners = vec![
+        c - t * h - b * h,
+        c + t * h - b * h,
+        c + t * h + b * h,
+        c - t * h + b * h,
+    ];
+    Ok((corners, colour(flag, text, &v[7..10])?))
+}
+
 /// Total sky radiance of `lights`.
 pub fn sky_radiance(lights: &[Light]) -> Rgb {
     lights
@@ -290,6 +319,17 @@ mod tests {
             punctual_incident(&[sun, point], DVec3::ZERO, DVec3::Y, (0.5, 0.5), &shut),
             Rgb::ZERO
         );
+    }
+
+    #[test]
+    fn an_area_flag_makes_a_square_facing_its_normal() {
+        let (c, e) = parse_area("1,2,3,0,-1,0,2,5,5,5").unwrap();
+        assert_eq!(e, Rgb::splat(5.0));
+        let n = crate::geometry::polygon::normal(&c).unwrap();
+        assert!((n - DVec3::NEG_Y).length() < 1e-12, "{n}");
+        assert!((crate::geometry::polygon::area(&c) - 4.0).abs() < 1e-12);
+        assert!(parse_area("0,0,0,0,0,0,1,1,1,1").is_err());
+        assert!(parse_area("0,0,0,0,1,0,-1,1,1,1").is_err());
     }
 
     #[test]
