@@ -153,3 +153,64 @@ pub fn lights_section(ui: &mut egui::Ui, snap: &Snapshot, actions: &mut Vec<Acti
             }
         });
 }
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use egui_kittest::Harness;
+    use egui_kittest::kittest::Queryable;
+
+    use super::*;
+    use crate::solver_thread::Command;
+    use crate::teach::panel_tests::snapshot_after;
+
+    struct Panel {
+        snapshot: Arc<Snapshot>,
+        actions: Vec<Action>,
+    }
+
+    fn harness(snapshot: Arc<Snapshot>) -> Harness<'static, Panel> {
+        let mut h = Harness::builder()
+            .with_size(egui::vec2(420.0, 700.0))
+            .build_ui_state(
+                |ui, p: &mut Panel| lights_section(ui, &p.snapshot.clone(), &mut p.actions),
+                Panel {
+                    snapshot,
+                    actions: Vec::new(),
+                },
+            );
+        h.run();
+        h
+    }
+
+    fn sent(h: &Harness<'_, Panel>) -> Vec<Light> {
+        match h.state().actions.last() {
+            Some(Action::SetLights(l)) => l.clone(),
+            other => panic!("no SetLights: {other:?}"),
+        }
+    }
+
+    /// The panel lists the solver's lights and the emitting material, adds a sun and
+    /// deletes a light, each time sending the whole new list.
+    #[test]
+    fn lights_are_listed_added_and_deleted() {
+        let sky = Light::Sky {
+            radiance: Rgb::splat(1.0),
+        };
+        let snap = snapshot_after(vec![Command::SetLights(vec![sky])], |s| s.lights.len() == 1);
+        let mut h = harness(snap);
+        h.get_by_label("1. sky");
+        h.get_by_label_contains("emitting material 'light'");
+        h.get_by_label("+ sun").click();
+        h.run();
+        let lights = sent(&h);
+        assert_eq!(lights.len(), 2);
+        assert_eq!(lights[0], sky);
+        assert!(matches!(lights[1], Light::Sun { .. }));
+        h.state_mut().actions.clear();
+        h.get_by_label("delete").click();
+        h.run();
+        assert!(sent(&h).is_empty());
+    }
+}

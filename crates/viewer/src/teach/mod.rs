@@ -39,7 +39,7 @@ pub mod nusselt;
 mod nusselt_3d;
 mod nusselt_panel;
 #[cfg(test)]
-mod panel_tests;
+pub(crate) mod panel_tests;
 pub mod step;
 mod step_panel;
 

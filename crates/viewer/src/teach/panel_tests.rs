@@ -53,7 +53,10 @@ fn harness(view: TeachView, snapshot: Option<Arc<Snapshot>>) -> Harness<'static,
 
 /// A solver thread on a coarse Cornell box (paused) and its first snapshot matching `want`
 /// after `commands`.
-fn snapshot_after(commands: Vec<Command>, want: impl Fn(&Snapshot) -> bool) -> Arc<Snapshot> {
+pub(crate) fn snapshot_after(
+    commands: Vec<Command>,
+    want: impl Fn(&Snapshot) -> bool,
+) -> Arc<Snapshot> {
     let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
     let mut h = SolverHandle::spawn(
         scene,
