@@ -9,6 +9,10 @@
 //! docs/VIEWER.md). Radiance is stored without the ambient term together with the
 //! per-vertex display correction `ρ·G` (the solver's ambient term, regional for shooting:
 //! `crates/core/src/solver/ambient.rs`), so the ambient toggle is a uniform multiplier of it.
+//!
+//! Textured patches ([`VertexTextures`]) also split their drawn vertices where the texture
+//! coordinates jump (a seam between two faces of one patch), so each drawn vertex has one
+//! uv.
 
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -20,8 +24,23 @@ use nusselt_core::formfactor::FormFactorMethod;
 use nusselt_core::geometry::Bvh;
 use nusselt_core::geometry::bvh::TriangleInput;
 use nusselt_core::mesh::{Mesh, PatchId};
-use nusselt_core::scene::{Camera, Material, Rgb};
-use nusselt_core::solver::SolverKind;
+use nusselt_core::scene::{Camera, Material, Rgb, Scene};
+use nusselt_core::solver::{Problem, SolverKind};
+
+/// Per drawn vertex, what the shader needs to draw a diffuse map under the solution.
+#[derive(Debug, Default)]
+pub struct VertexTextures {
+    /// Texture coordinates (the face's `vt` at the vertex, with the material's `-s`/`-o`
+    /// transform applied; OBJ convention, v = 0 at the image's bottom row).
+    pub uv: Vec<[f32; 2]>,
+    /// The mean of the texture over the vertex's elements: the area-weighted mean of
+    /// [`Problem::element_texture`] over the display triangles that use the vertex (all in
+    /// one patch). The shader divides the texel by it, as the CPU passes divide by the
+    /// element's own mean.
+    pub mean: Vec<[f32; 3]>,
+    /// Texture-array layer + 1 ([`crate::textures::diffuse_layers`]); 0 where untextured.
+    pub layer: Vec<u32>,
+}
 
 /// Mesh arrays for drawing and picking; rebuilt only when the mesh changes.
 #[derive(Debug)]
@@ -36,6 +55,8 @@ pub struct Geometry {
     pub source_vertex: Vec<u32>,
     /// Drawn vertices of the display triangles, three per triangle (the index buffer).
     pub indices: Vec<u32>,
+    /// Texture coordinates, means and layers; `None` for an untextured problem.
+    pub textures: Option<VertexTextures>,
     /// Element edges as line-list endpoints.
     pub element_lines: Vec<[f32; 3]>,
     /// Patch outlines as line-list endpoints.
@@ -55,14 +76,64 @@ pub struct Geometry {
     pub element_size: f64,
 }
 
+/// What [`Geometry::build`] reads to texture the drawn vertices.
+struct Texturing<'a> {
+    scene: &'a Scene,
+    element_texture: &'a [Rgb],
+    layer_of: Vec<Option<u32>>,
+}
+
+impl Texturing<'_> {
+    /// Layer + 1 and uv of mesh vertex `p` on element `e` of `mesh`; `None` where the
+    /// element's material has no diffuse map on the GPU or its face has no `vt`.
+    fn at(&self, mesh: &Mesh, e: usize, p: DVec3) -> Option<(u32, [f32; 2])> {
+        let el = &mesh.elements[e];
+        let material = mesh.patch(el.patch).material;
+        let m = self.scene.materials.get(material.0 as usize)?;
+        let layer = (*self.layer_of.get(m.diffuse_map?.0 as usize)?)?;
+        let uv = self.scene.faces.get(el.face as usize)?.uv_at(p)?;
+        let uv = m.diffuse_uv.apply(uv);
+        Some((layer + 1, uv.as_vec2().to_array()))
+    }
+}
+
+/// The same point of texture space (within rounding of the two faces' interpolation).
+fn same_uv(a: [f32; 2], b: [f32; 2]) -> bool {
+    let tol = |x: f32, y: f32| (x - y).abs() <= 1e-5 * x.abs().max(y.abs()).max(1.0);
+    tol(a[0], b[0]) && tol(a[1], b[1])
+}
+
 impl Geometry {
+    /// Untextured drawing arrays of a mesh.
     pub fn from_mesh(id: u64, mesh: &Mesh) -> Geometry {
+        Self::build(id, mesh, None)
+    }
+
+    /// Drawing arrays of a problem's mesh, with its diffuse maps' texture coordinates and
+    /// means when it has any ([`Problem::element_texture`] not empty).
+    pub fn from_problem(id: u64, problem: &Problem) -> Geometry {
+        let texturing = (!problem.element_texture().is_empty()).then(|| Texturing {
+            scene: &problem.scene,
+            element_texture: problem.element_texture(),
+            layer_of: crate::textures::diffuse_layers(&problem.scene),
+        });
+        Self::build(id, &problem.mesh, texturing)
+    }
+
+    fn build(id: u64, mesh: &Mesh, texturing: Option<Texturing>) -> Geometry {
         let n = mesh.vertices.len();
         let mut positions = Vec::with_capacity(n);
         let mut patch = Vec::with_capacity(n);
         let mut source_vertex = Vec::with_capacity(n);
         let mut indices = Vec::with_capacity(mesh.triangles.len() * 3);
+        // First drawn vertex of each (mesh vertex, patch); further ones (other uvs) chained
+        // through `next`.
         let mut drawn: HashMap<(u32, u32), u32> = HashMap::with_capacity(n);
+        let mut next: Vec<u32> = Vec::with_capacity(n);
+        let mut tex = texturing.as_ref().map(|_| VertexTextures::default());
+        // Per drawn vertex: Σ area × element mean, Σ area, Σ element mean, count (for a
+        // vertex of zero-area triangles only).
+        let mut mean_sum: Vec<(DVec3, f64, DVec3, u32)> = Vec::new();
         let mut inputs = Vec::with_capacity(mesh.triangles.len());
         for (i, (t, e)) in mesh
             .triangles
@@ -71,21 +142,84 @@ impl Geometry {
             .enumerate()
         {
             let pid = mesh.elements[e.0 as usize].patch.0;
-            for &v in t {
-                let d = *drawn.entry((v, pid)).or_insert_with(|| {
-                    positions.push(mesh.vertices[v as usize].as_vec3().to_array());
+            let corners = t.map(|v| mesh.vertices[v as usize]);
+            let area = 0.5 * (corners[1] - corners[0]).cross(corners[2] - corners[0]).length();
+            for (&v, &p) in t.iter().zip(&corners) {
+                let here = texturing.as_ref().and_then(|x| x.at(mesh, e.0 as usize, p));
+                let uv_of = |d: u32, tex: &Option<VertexTextures>| {
+                    tex.as_ref()
+                        .and_then(|x| (x.layer[d as usize] != 0).then(|| x.uv[d as usize]))
+                };
+                let matches = |d: u32, tex: &Option<VertexTextures>| {
+                    match (uv_of(d, tex), here) {
+                        (None, None) => true,
+                        (Some(a), Some((_, b))) => same_uv(a, b),
+                        _ => false,
+                    }
+                };
+                let mut found = None;
+                let mut last = None;
+                let mut at = drawn.get(&(v, pid)).copied();
+                while let Some(d) = at {
+                    if matches(d, &tex) {
+                        found = Some(d);
+                        break;
+                    }
+                    last = Some(d);
+                    at = (next[d as usize] != u32::MAX).then(|| next[d as usize]);
+                }
+                let d = found.unwrap_or_else(|| {
+                    let d = positions.len() as u32;
+                    positions.push(p.as_vec3().to_array());
                     patch.push(pid);
                     source_vertex.push(v);
-                    source_vertex.len() as u32 - 1
+                    next.push(u32::MAX);
+                    match last {
+                        Some(l) => next[l as usize] = d,
+                        None => {
+                            drawn.insert((v, pid), d);
+                        }
+                    }
+                    if let Some(x) = tex.as_mut() {
+                        let (layer, uv) = here.unwrap_or((0, [0.0; 2]));
+                        x.layer.push(layer);
+                        x.uv.push(uv);
+                        mean_sum.push((DVec3::ZERO, 0.0, DVec3::ZERO, 0));
+                    }
+                    d
                 });
+                if let Some(x) = &texturing
+                    && let Some(m) = x.element_texture.get(e.0 as usize)
+                {
+                    let s = &mut mean_sum[d as usize];
+                    s.0 += *m * area;
+                    s.1 += area;
+                    s.2 += *m;
+                    s.3 += 1;
+                }
                 indices.push(d);
             }
             inputs.push(TriangleInput {
-                vertices: t.map(|v| mesh.vertices[v as usize]),
+                vertices: corners,
                 id: i as u32,
                 // Matches the viewport, which culls back faces.
                 cull_back: true,
             });
+        }
+        if let Some(x) = tex.as_mut() {
+            x.mean = mean_sum
+                .iter()
+                .map(|&(s, a, plain, k)| {
+                    let m = if a > 0.0 {
+                        s / a
+                    } else if k > 0 {
+                        plain / k as f64
+                    } else {
+                        Rgb::ONE
+                    };
+                    m.as_vec3().to_array()
+                })
+                .collect();
         }
         let mut element_lines = Vec::with_capacity(mesh.elements.len() * 8);
         for e in &mesh.elements {
@@ -110,6 +244,7 @@ impl Geometry {
             patch,
             source_vertex,
             indices,
+            textures: tex,
             element_lines,
             patch_lines,
             bvh: Bvh::build(&inputs),
@@ -221,6 +356,8 @@ pub struct Snapshot {
     pub scene_source: Option<PathBuf>,
     /// Changes whenever a new scene is installed (not on re-mesh).
     pub scene_rev: u64,
+    /// The scene's diffuse maps, for the GPU's texture array; `None` when it has none.
+    pub textures: Option<Arc<crate::textures::TextureLayers>>,
     /// The scene's own camera, or one that frames it.
     pub scene_camera: Camera,
     pub two_sided: bool,
