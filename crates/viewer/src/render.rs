@@ -393,14 +393,10 @@ impl ViewportResources {
             return 0;
         };
         let limits = device.limits();
-        if t.size > limits.max_texture_dimension_2d || t.layers > limits.max_texture_array_layers
-        {
+        if t.size > limits.max_texture_dimension_2d || t.layers > limits.max_texture_array_layers {
             eprintln!(
                 "viewer: {} texture layers of {}² exceed this GPU's limits ({} layers of {}²); drawing untextured",
-                t.layers,
-                t.size,
-                limits.max_texture_array_layers,
-                limits.max_texture_dimension_2d
+                t.layers, t.size, limits.max_texture_array_layers, limits.max_texture_dimension_2d
             );
             return 0;
         }
@@ -503,8 +499,7 @@ impl ViewportResources {
             );
             queue.write_buffer(&patch_lines, 0, bytemuck::cast_slice(&g.patch_lines));
             // Zero-initialised (untextured) unless the geometry has textures.
-            let texturing =
-                Self::vertex_buffer(device, "nusselt texturing", n * TEXTURING_STRIDE);
+            let texturing = Self::vertex_buffer(device, "nusselt texturing", n * TEXTURING_STRIDE);
             if let Some(t) = &g.textures {
                 let mut packed: Vec<u8> = Vec::with_capacity(t.uv.len() * 24);
                 for ((uv, mean), layer) in t.uv.iter().zip(&t.mean).zip(&t.layer) {

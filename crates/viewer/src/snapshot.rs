@@ -33,9 +33,9 @@ pub struct VertexTextures {
     /// Texture coordinates (the face's `vt` at the vertex, with the material's `-s`/`-o`
     /// transform applied; OBJ convention, v = 0 at the image's bottom row).
     pub uv: Vec<[f32; 2]>,
-    /// The mean of the texture over the vertex's elements: the area-weighted mean of
-    /// [`Problem::element_texture`] over the display triangles that use the vertex (all in
-    /// one patch). The shader divides the texel by it, as the CPU passes divide by the
+    /// The mean of the texture over the vertex's elements: the mean of
+    /// [`Problem::element_texture`] over the elements with a corner at the vertex (all in
+    /// one patch, with this uv), weighted by their areas. The shader divides the texel by it, as the CPU passes divide by the
     /// element's own mean.
     pub mean: Vec<[f32; 3]>,
     /// Texture-array layer + 1 ([`crate::textures::diffuse_layers`]); 0 where untextured.
@@ -132,8 +132,10 @@ impl Geometry {
         let mut next: Vec<u32> = Vec::with_capacity(n);
         let mut tex = texturing.as_ref().map(|_| VertexTextures::default());
         // Per drawn vertex: Σ area × element mean, Σ area, Σ element mean, count (for a
-        // vertex of zero-area triangles only).
+        // vertex of zero-area elements only), and the last element counted (an element's
+        // one or two display triangles are consecutive, so each counts once).
         let mut mean_sum: Vec<(DVec3, f64, DVec3, u32)> = Vec::new();
+        let mut last_element: Vec<u32> = Vec::new();
         let mut inputs = Vec::with_capacity(mesh.triangles.len());
         for (i, (t, e)) in mesh
             .triangles
@@ -143,19 +145,17 @@ impl Geometry {
         {
             let pid = mesh.elements[e.0 as usize].patch.0;
             let corners = t.map(|v| mesh.vertices[v as usize]);
-            let area = 0.5 * (corners[1] - corners[0]).cross(corners[2] - corners[0]).length();
+            let area = mesh.elements[e.0 as usize].area;
             for (&v, &p) in t.iter().zip(&corners) {
                 let here = texturing.as_ref().and_then(|x| x.at(mesh, e.0 as usize, p));
                 let uv_of = |d: u32, tex: &Option<VertexTextures>| {
                     tex.as_ref()
                         .and_then(|x| (x.layer[d as usize] != 0).then(|| x.uv[d as usize]))
                 };
-                let matches = |d: u32, tex: &Option<VertexTextures>| {
-                    match (uv_of(d, tex), here) {
-                        (None, None) => true,
-                        (Some(a), Some((_, b))) => same_uv(a, b),
-                        _ => false,
-                    }
+                let matches = |d: u32, tex: &Option<VertexTextures>| match (uv_of(d, tex), here) {
+                    (None, None) => true,
+                    (Some(a), Some((_, b))) => same_uv(a, b),
+                    _ => false,
                 };
                 let mut found = None;
                 let mut last = None;
@@ -185,12 +185,15 @@ impl Geometry {
                         x.layer.push(layer);
                         x.uv.push(uv);
                         mean_sum.push((DVec3::ZERO, 0.0, DVec3::ZERO, 0));
+                        last_element.push(u32::MAX);
                     }
                     d
                 });
                 if let Some(x) = &texturing
                     && let Some(m) = x.element_texture.get(e.0 as usize)
+                    && last_element[d as usize] != e.0
                 {
+                    last_element[d as usize] = e.0;
                     let s = &mut mean_sum[d as usize];
                     s.0 += *m * area;
                     s.1 += area;
@@ -440,5 +443,239 @@ mod tests {
             g.positions.len(),
             g.indices.len()
         );
+    }
+}
+
+#[cfg(test)]
+mod texture_tests {
+    use super::*;
+    use crate::textures::TextureLayers;
+    use nusselt_core::scene::{LoadOptions, Scene};
+    use nusselt_core::solver::SolverConfig;
+
+    /// 4 × 4 checkerboard, red where x + y is even (y down from the top row), else blue.
+    fn write_checker(path: &std::path::Path) {
+        image::RgbImage::from_fn(4, 4, |x, y| {
+            if (x + y) % 2 == 0 {
+                image::Rgb([255, 0, 0])
+            } else {
+                image::Rgb([0, 0, 255])
+            }
+        })
+        .save(path)
+        .expect("png");
+    }
+
+    /// The unit square y = 0 with vt = (x, z) (material `checker`, or `scaled` with
+    /// `-s 2 2`), and an untextured square at y = 2 facing down; the problem at element
+    /// size `size` with whole squares as patches (their elements share vertices).
+    fn textured_problem(material: &str, size: f64) -> (Problem, tempfile::TempDir) {
+        let dir = tempfile::tempdir().expect("temp dir");
+        write_checker(&dir.path().join("checker.png"));
+        std::fs::write(
+            dir.path().join("s.mtl"),
+            "newmtl checker\nKd 0.8 0.8 0.8\nmap_Kd checker.png\n\
+             newmtl scaled\nKd 0.8 0.8 0.8\nmap_Kd -s 2 2 1 checker.png\n\
+             newmtl light\nKd 0.5 0.5 0.5\nKe 1 1 1\n",
+        )
+        .expect("mtl");
+        let obj = format!(
+            "mtllib s.mtl\nvt 0 0\nvt 0 1\nvt 1 1\nvt 1 0\n\
+             v 0 0 0\nv 0 0 1\nv 1 0 1\nv 1 0 0\nusemtl {material}\nf 1/1 2/2 3/3 4/4\n\
+             v 0 2 0\nv 1 2 0\nv 1 2 1\nv 0 2 1\nusemtl light\nf 5 6 7 8\n"
+        );
+        let path = dir.path().join("s.obj");
+        std::fs::write(&path, obj).expect("obj");
+        let scene = Scene::load_obj(&path, &LoadOptions::default()).expect("loads");
+        let config = SolverConfig {
+            element_size: Some(size),
+            patch_size: Some(1.0),
+            ..Default::default()
+        };
+        (Problem::new(scene, config).expect("problem"), dir)
+    }
+
+    fn close(a: [f32; 3], b: Rgb, tol: f64) -> bool {
+        (0..3).all(|k| (a[k] as f64 - b[k]).abs() <= tol)
+    }
+
+    #[test]
+    fn a_textured_quad_has_its_vt_and_its_mean_at_the_corners() {
+        // One element over the whole square: the corners' uvs are the OBJ's vt, and the mean
+        // is the element's (the whole checker's: half red, half blue).
+        let (problem, _dir) = textured_problem("checker", 2.0);
+        let g = Geometry::from_problem(1, &problem);
+        let t = g.textures.as_ref().expect("textured");
+        let textured: Vec<usize> = (0..g.positions.len())
+            .filter(|&d| t.layer[d] == 1)
+            .collect();
+        assert_eq!(textured.len(), 4, "{:?}", t.layer);
+        let e = problem
+            .mesh
+            .elements
+            .iter()
+            .position(|e| problem.scene.faces[e.face as usize].uvs.is_some())
+            .expect("textured element");
+        let mean = problem.element_texture()[e];
+        assert!(
+            (mean.x - mean.z).abs() < 1e-6 && mean.y.abs() < 1e-9,
+            "{mean}"
+        );
+        for d in textured {
+            let [x, _, z] = g.positions[d];
+            assert_eq!(t.uv[d], [x, z], "vertex at {:?}", g.positions[d]);
+            assert!(close(t.mean[d], mean, 1e-6), "{:?} vs {mean}", t.mean[d]);
+        }
+        // The light's square has no map.
+        assert!(t.layer.iter().filter(|&&l| l == 0).count() >= 4);
+    }
+
+    #[test]
+    fn shared_vertices_average_their_elements_means_by_area() {
+        // Elements of a quarter: each covers one checker cell, so each element is pure red or
+        // blue, and a vertex's mean is the area-weighted mean of the elements around it.
+        let (problem, _dir) = textured_problem("checker", 0.25);
+        let mesh = &problem.mesh;
+
+        let g = Geometry::from_problem(1, &problem);
+        let t = g.textures.as_ref().expect("textured");
+        let tex = problem.element_texture();
+        for e in mesh.elements.iter().zip(tex) {
+            if mesh.patch(e.0.patch).material == mesh.patch(PatchId(0)).material {
+                let m = *e.1;
+                assert!(m.max_element() > 0.99 && m.min_element() < 1e-6, "{m}");
+            }
+        }
+        let mut checked = 0;
+        for d in 0..g.positions.len() {
+            if t.layer[d] == 0 {
+                continue;
+            }
+            let v = g.source_vertex[d] as usize;
+            let p = mesh.vertices[v];
+            assert_eq!(t.uv[d], [p.x as f32, p.z as f32]);
+            // Independently: the elements of this patch with a corner at this vertex.
+            let (mut sum, mut area) = (Rgb::ZERO, 0.0);
+            for (element, m) in mesh.elements.iter().zip(tex) {
+                if element.patch.0 == g.patch[d] && element.vertex_ids().contains(&(v as u32)) {
+                    sum += *m * element.area;
+                    area += element.area;
+                }
+            }
+            assert!(close(t.mean[d], sum / area, 1e-6), "vertex {p}");
+            checked += 1;
+        }
+        assert!(checked >= 25, "{checked} textured vertices");
+        // An interior vertex between two red and two blue cells: purple.
+        let centre = (0..g.positions.len())
+            .find(|&d| t.layer[d] == 1 && g.positions[d] == [0.5, 0.0, 0.5])
+            .expect("centre vertex");
+        assert!(close(t.mean[centre], Rgb::new(0.5, 0.0, 0.5), 1e-6));
+    }
+
+    #[test]
+    fn the_layer_read_at_the_vertex_uv_is_the_cpu_texel() {
+        // What the shader samples (layer texels top row first, at (u, 1 − v), repeating)
+        // equals the core's texel at the element centres, with the material's `-s 2 2`.
+        let (problem, _dir) = textured_problem("scaled", 0.25);
+        let layers = TextureLayers::build(&problem.scene).expect("layers");
+        assert_eq!((layers.layers, layers.size, layers.mip_levels), (1, 4, 3));
+        assert_eq!(layers.gpu_bytes(), (16 + 4 + 1) * 8);
+        let g = Geometry::from_problem(1, &problem);
+        let t = g.textures.as_ref().expect("textured");
+        // Bilinear with repeat at level 0, as the sampler magnifies.
+        let texel = |uv: [f32; 2]| -> Rgb {
+            let n = layers.size as i64;
+            let read = |x: i64, y: i64| {
+                let i = 4 * (y.rem_euclid(n) * n + x.rem_euclid(n)) as usize;
+                let c = |k: usize| half::f16::from_bits(layers.mips[0][i + k]).to_f64();
+                Rgb::new(c(0), c(1), c(2))
+            };
+            let x = uv[0] as f64 * n as f64 - 0.5;
+            let y = (1.0 - uv[1] as f64) * n as f64 - 0.5;
+            let (x0, y0) = (x.floor(), y.floor());
+            let (fx, fy) = (x - x0, y - y0);
+            let (x0, y0) = (x0 as i64, y0 as i64);
+            read(x0, y0) * (1.0 - fx) * (1.0 - fy)
+                + read(x0 + 1, y0) * fx * (1.0 - fy)
+                + read(x0, y0 + 1) * (1.0 - fx) * fy
+                + read(x0 + 1, y0 + 1) * fx * fy
+        };
+        let mut checked = 0;
+        for (tri, el) in g.indices.chunks_exact(3).zip(&g.triangle_element) {
+            if tri.iter().any(|&d| t.layer[d as usize] == 0) {
+                continue;
+            }
+            let uv = tri.iter().fold([0.0f32; 2], |a, &d| {
+                let u = t.uv[d as usize];
+                [a[0] + u[0] / 3.0, a[1] + u[1] / 3.0]
+            });
+            let e = &problem.mesh.elements[*el as usize];
+            let c = tri.iter().fold(DVec3::ZERO, |a, &d| {
+                a + glam::Vec3::from(g.positions[d as usize]).as_dvec3() / 3.0
+            });
+            let (want, _) = problem.scene.texel(e.face as usize, c).expect("texel");
+            assert!((texel(uv) - want).abs().max_element() < 2e-3, "{c}: {want}");
+            checked += 1;
+        }
+        assert!(checked >= 16);
+    }
+
+    #[test]
+    fn a_uv_seam_splits_the_drawn_vertices() {
+        // Two small triangles folded along their shared edge (one cluster patch, an element
+        // each) whose vt differ along that edge: each triangle's corners keep their own uvs
+        // there (two drawn vertices per end of the edge), elsewhere one.
+        let dir = tempfile::tempdir().expect("temp dir");
+        write_checker(&dir.path().join("checker.png"));
+        std::fs::write(
+            dir.path().join("s.mtl"),
+            "newmtl checker\nKd 0.8 0.8 0.8\nmap_Kd checker.png\n",
+        )
+        .expect("mtl");
+        let obj = "mtllib s.mtl\nvt 0 0\nvt 0 1\nvt 1 1\nvt 1 0\nvt 3 3\nvt 5 5\n\
+                   v 0 0 0\nv 0 0 1\nv 1 0 1\nv 1 0.3 0\nusemtl checker\n\
+                   f 1/1 2/2 3/3\nf 1/5 3/6 4/4\n";
+        let path = dir.path().join("s.obj");
+        std::fs::write(&path, obj).expect("obj");
+        let scene = Scene::load_obj(&path, &LoadOptions::default()).expect("loads");
+        let config = SolverConfig {
+            element_size: Some(2.0),
+            patch_size: Some(2.0),
+            ..Default::default()
+        };
+        let problem = Problem::new(scene, config).expect("problem");
+        assert_eq!(problem.mesh.patches.len(), 1);
+        assert_eq!(problem.mesh.elements.len(), 2);
+        let g = Geometry::from_problem(1, &problem);
+        let t = g.textures.as_ref().expect("textured");
+        let uvs_at = |p: [f32; 3]| {
+            let mut uv: Vec<[f32; 2]> = (0..g.positions.len())
+                .filter(|&d| g.positions[d] == p)
+                .map(|d| t.uv[d])
+                .collect();
+            uv.sort_by(|a, b| a.partial_cmp(b).expect("finite"));
+            uv
+        };
+        assert_eq!(uvs_at([0.0, 0.0, 0.0]), vec![[0.0, 0.0], [3.0, 3.0]]);
+        assert_eq!(uvs_at([1.0, 0.0, 1.0]), vec![[1.0, 1.0], [5.0, 5.0]]);
+        assert_eq!(uvs_at([0.0, 0.0, 1.0]), vec![[0.0, 1.0]]);
+        assert_eq!(uvs_at([1.0, 0.3, 0.0]), vec![[1.0, 0.0]]);
+    }
+
+    #[test]
+    fn an_untextured_problem_has_no_texturing() {
+        let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+        let config = SolverConfig {
+            element_size: Some(120.0),
+            ..Default::default()
+        };
+        let problem = Problem::new(scene, config).expect("problem");
+        let g = Geometry::from_problem(1, &problem);
+        assert!(g.textures.is_none());
+        assert!(TextureLayers::build(&problem.scene).is_none());
+        let plain = Geometry::from_mesh(1, &problem.mesh);
+        assert_eq!(g.positions, plain.positions);
+        assert_eq!(g.indices, plain.indices);
     }
 }

@@ -265,7 +265,12 @@ mod tests {
         assert_eq!(out.len(), 16);
         let (a, b) = (mean(&src), mean(&out));
         for k in 0..4 {
-            assert!((a[k] - b[k]).abs() < 1e-5, "channel {k}: {} vs {}", a[k], b[k]);
+            assert!(
+                (a[k] - b[k]).abs() < 1e-5,
+                "channel {k}: {} vs {}",
+                a[k],
+                b[k]
+            );
         }
         let chain = mip_chain(out, 4);
         assert_eq!(chain.len(), 3);
