@@ -26,8 +26,9 @@ fn scene(dir: &Path, wall_mtl: &str) -> Scene {
         v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl wall\nf 1/1 2/2 3/3 4/4\n\
         v 0 0 0\nv 0 0 1\nv 1 0 1\nv 1 0 0\nusemtl floor\nf 5 6 7 8\n\
         v 0 1 0.2\nv 1 1 0.2\nv 1 1 0.6\nv 0 1 0.6\nusemtl light\nf 9 10 11 12\n";
-    let mtl =
-        format!("{wall_mtl}\nnewmtl floor\nKd 0.5 0.5 0.5\nnewmtl light\nKd 0 0 0\nKe 5 5 5\n");
+    let mtl = format!(
+        "{wall_mtl}\nnewmtl floor\nKd 0.5 0.5 0.5\nnewmtl light\nKd 0 0 0\nKe 5 5 5\n"
+    );
     std::fs::write(dir.join("s.obj"), obj).expect("obj");
     std::fs::write(dir.join("s.mtl"), mtl).expect("mtl");
     Scene::load_obj(&dir.join("s.obj"), &LoadOptions::default()).expect("scene")
@@ -60,26 +61,17 @@ const SRGB_188: f64 = 0.502_886;
 fn a_textured_wall_bleeds_the_colour_of_its_mean() {
     let dir = tempfile::tempdir().expect("temp dir");
     write_checker(&dir.path().join("c.png"), [188, 0, 0], [0, 0, 188]);
-    let textured = solve(scene(
-        dir.path(),
-        "newmtl wall\nKd 0.8 0.8 0.8\nmap_Kd c.png",
-    ));
+    let textured = solve(scene(dir.path(), "newmtl wall\nKd 0.8 0.8 0.8\nmap_Kd c.png"));
     let mean = 0.8 * SRGB_188 / 2.0;
     let flat = solve(scene(
         dir.path(),
         &format!("newmtl wall\nKd {mean} 0 {mean}"),
     ));
-    let (a, b) = (
-        textured.element_radiance(false),
-        flat.element_radiance(false),
-    );
+    let (a, b) = (textured.element_radiance(false), flat.element_radiance(false));
     assert_eq!(a.len(), b.len());
     let mut floor_red = 0.0;
     for ((x, y), e) in a.iter().zip(&b).zip(&textured.mesh().elements) {
-        assert!(
-            (*x - *y).abs().max_element() < 1e-6 * y.max_element().max(1e-3),
-            "{x} vs {y}"
-        );
+        assert!((*x - *y).abs().max_element() < 1e-6 * y.max_element().max(1e-3), "{x} vs {y}");
         if e.normal.y > 0.5 {
             floor_red += x.x;
         }
@@ -91,10 +83,7 @@ fn a_textured_wall_bleeds_the_colour_of_its_mean() {
 fn the_image_shows_the_texel_under_the_computed_light() {
     let dir = tempfile::tempdir().expect("temp dir");
     write_checker(&dir.path().join("c.png"), [255, 255, 255], [0, 0, 0]);
-    let textured = solve(scene(
-        dir.path(),
-        "newmtl wall\nKd 0.8 0.8 0.8\nmap_Kd c.png",
-    ));
+    let textured = solve(scene(dir.path(), "newmtl wall\nKd 0.8 0.8 0.8\nmap_Kd c.png"));
     let flat = solve(scene(dir.path(), "newmtl wall\nKd 0.4 0.4 0.4"));
     // The wall fills the image: pixel (i, j) of 64 sees wall point (i/64, 1 − j/64), cell
     // (i/4, j/4) counted from the image's top-left; pixels 4k + 1 and 4k + 2 lie on the
@@ -137,9 +126,6 @@ fn the_image_shows_the_texel_under_the_computed_light() {
         let white = white / 128.0;
         assert!((white - 2.0).abs() < 0.02, "{pass:?}: white/flat {white}");
         assert!(black < 1e-9, "{pass:?}: black/flat {black}");
-        assert!(
-            (sum_t / sum_f - 1.0).abs() < 0.02,
-            "{pass:?}: means {sum_t} {sum_f}"
-        );
+        assert!((sum_t / sum_f - 1.0).abs() < 0.02, "{pass:?}: means {sum_t} {sum_f}");
     }
 }
