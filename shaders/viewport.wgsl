@@ -2,6 +2,12 @@
 //
 // Radiance is linear (W m^-2 sr^-1 per channel). The egui-wgpu surface here is not sRGB,
 // so the fragment shader applies exposure and encodes sRGB itself.
+//
+// Diffuse maps: a textured vertex carries its texture coordinates, the texture's mean over
+// its elements (what the solver multiplied Kd by) and its layer + 1 in the texture array
+// (0: untextured). With textures on, what is shown is E + (B - E) * texel / mean per
+// channel, the solution's reflected light under the texel instead of the mean, as the CPU
+// passes of `nusselt render` show it (`SolutionView::texture_ratio`).
 
 struct Uniforms {
     view_proj: mat4x4<f32>,
@@ -13,23 +19,36 @@ struct Uniforms {
     ids: vec4<u32>,
     element_line_color: vec4<f32>,
     patch_line_color: vec4<f32>,
-    // x: depth bias of lines in clip w units.
+    // x: depth bias of lines in clip w units; y: 1 to show the diffuse maps, 0 not.
     params: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> u: Uniforms;
+// Linear RGBA diffuse maps, one per layer, mip-mapped; repeat wrap, trilinear filtering.
+@group(0) @binding(1) var diffuse_maps: texture_2d_array<f32>;
+@group(0) @binding(2) var diffuse_sampler: sampler;
 
 struct MeshIn {
     @location(0) position: vec3<f32>,
     @location(1) patch_id: u32,
     @location(2) correction: vec3<f32>,
     @location(3) radiance: vec3<f32>,
+    // OBJ texture coordinates (v = 0 at the image's bottom row).
+    @location(4) uv: vec2<f32>,
+    @location(5) mean: vec3<f32>,
+    @location(6) layer: u32,
+    @location(7) emission: vec3<f32>,
 };
 
 struct MeshOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) radiance: vec3<f32>,
     @location(1) @interpolate(flat) patch_id: u32,
+    // Texture space with y down, as the layers are stored (top row first).
+    @location(2) uv: vec2<f32>,
+    @location(3) mean: vec3<f32>,
+    @location(4) @interpolate(flat) layer: u32,
+    @location(5) @interpolate(flat) emission: vec3<f32>,
 };
 
 @vertex
@@ -38,7 +57,17 @@ fn vs_mesh(v: MeshIn) -> MeshOut {
     out.clip = u.view_proj * vec4<f32>(v.position, 1.0);
     out.radiance = v.radiance + v.correction * u.ambient_exposure.rgb;
     out.patch_id = v.patch_id;
+    out.uv = vec2<f32>(v.uv.x, 1.0 - v.uv.y);
+    out.mean = v.mean;
+    out.layer = v.layer;
+    out.emission = v.emission;
     return out;
+}
+
+// texel / mean per channel; 1 where the mean is (nearly) black.
+fn texture_ratio(texel: vec3<f32>, mean: vec3<f32>) -> vec3<f32> {
+    let ok = mean >= vec3<f32>(1e-9);
+    return select(vec3<f32>(1.0), texel / max(mean, vec3<f32>(1e-9)), ok);
 }
 
 fn linear_to_srgb(c: vec3<f32>) -> vec3<f32> {
@@ -50,7 +79,16 @@ fn linear_to_srgb(c: vec3<f32>) -> vec3<f32> {
 
 @fragment
 fn fs_mesh(v: MeshOut) -> @location(0) vec4<f32> {
-    var c = linear_to_srgb(max(v.radiance, vec3<f32>(0.0)) * u.ambient_exposure.w);
+    var radiance = v.radiance;
+    // The toggle is uniform, so the sample (with its implicit derivatives) is in uniform
+    // control flow; the per-vertex layer only selects its result.
+    if (u.params.y > 0.5) {
+        let layer = i32(max(v.layer, 1u) - 1u);
+        let texel = textureSample(diffuse_maps, diffuse_sampler, v.uv, layer).rgb;
+        let shown = v.emission + (radiance - v.emission) * texture_ratio(texel, v.mean);
+        radiance = select(radiance, shown, v.layer > 0u);
+    }
+    var c = linear_to_srgb(max(radiance, vec3<f32>(0.0)) * u.ambient_exposure.w);
     if ((u.ids.z & 1u) != 0u && v.patch_id == u.ids.x) {
         c = mix(c, vec3<f32>(1.0, 0.8, 0.1), 0.55);
     }

@@ -107,3 +107,64 @@ fn a_broken_shader_is_rejected() {
     });
     assert!(!matches!(valid, Ok(true)));
 }
+
+/// The viewport shader reads the diffuse maps as render.rs binds them: a filterable float
+/// 2-D array at binding 1 and a filtering sampler at binding 2 of group 0, and its mesh
+/// vertex input has the eight locations render.rs's five vertex buffers fill.
+#[test]
+fn viewport_shader_binds_the_texture_array() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("shaders")
+        .join("viewport.wgsl");
+    let module = validate(&path);
+    let at = |binding: u32| {
+        let (_, var) = module
+            .global_variables
+            .iter()
+            .find(|(_, v)| {
+                v.binding
+                    .as_ref()
+                    .is_some_and(|b| b.group == 0 && b.binding == binding)
+            })
+            .unwrap_or_else(|| panic!("nothing at binding {binding}"));
+        module.types[var.ty].inner.clone()
+    };
+    assert!(
+        matches!(
+            at(1),
+            naga::TypeInner::Image {
+                dim: naga::ImageDimension::D2,
+                arrayed: true,
+                class: naga::ImageClass::Sampled {
+                    kind: naga::ScalarKind::Float,
+                    multi: false
+                },
+            }
+        ),
+        "{:?}",
+        at(1)
+    );
+    assert!(matches!(
+        at(2),
+        naga::TypeInner::Sampler { comparison: false }
+    ));
+    let vs = module
+        .entry_points
+        .iter()
+        .find(|e| e.name == "vs_mesh")
+        .expect("vs_mesh");
+    let arg = &vs.function.arguments[0];
+    let naga::TypeInner::Struct { members, .. } = &module.types[arg.ty].inner else {
+        panic!("vs_mesh takes a struct");
+    };
+    let mut locations: Vec<u32> = members
+        .iter()
+        .filter_map(|m| match m.binding {
+            Some(naga::Binding::Location { location, .. }) => Some(location),
+            _ => None,
+        })
+        .collect();
+    locations.sort_unstable();
+    assert_eq!(locations, (0..8).collect::<Vec<u32>>());
+    assert_eq!(nusselt_viewer::render::TEXTURING_STRIDE, 24);
+}

@@ -76,6 +76,10 @@ pub struct ViewCmdArgs {
     /// Start with the ambient term off.
     #[arg(long)]
     pub no_ambient: bool,
+    /// Start with the diffuse maps off: each element in its texture's mean colour, the
+    /// solution as radiosity computes it ("textures" in the Display section).
+    #[arg(long)]
+    pub no_textures: bool,
     /// Don't highlight the shooting patch.
     #[arg(long)]
     pub no_highlight: bool,
@@ -278,6 +282,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
             exposure_stops: args.exposure,
             highlight_shooter: !args.no_highlight,
             ray_traced: args.ray_traced,
+            textures: !args.no_textures,
             adaptive: args.adaptive,
             discontinuity: args.discontinuity,
             paused: args.paused,

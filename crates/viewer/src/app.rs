@@ -115,6 +115,7 @@ impl ViewerApp {
                 patch_outlines: options.patch_outlines,
                 highlight_shooter: options.highlight_shooter,
                 ray_traced: options.ray_traced,
+                textures: options.textures,
             },
             element_size: options.element_size.unwrap_or(0.0),
             element_size_text: String::new(),

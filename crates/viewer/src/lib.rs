@@ -32,6 +32,7 @@ pub mod render;
 pub mod snapshot;
 pub mod solver_thread;
 pub mod teach;
+pub mod textures;
 mod viewport;
 
 use std::sync::{Arc, OnceLock};
@@ -71,6 +72,8 @@ pub struct UiOptions {
     pub highlight_shooter: bool,
     /// Start with the ray-traced view on.
     pub ray_traced: bool,
+    /// Show the diffuse maps (the Display section's "textures"; on unless `--no-textures`).
+    pub textures: bool,
     /// Refine the mesh adaptively to this tolerance from the start.
     pub adaptive: Option<f64>,
     /// Cut the lights' shadow outlines into the surfaces before meshing

@@ -57,6 +57,9 @@ pub struct ViewSettings {
     pub highlight_shooter: bool,
     /// Show the ray-traced view (`ray_view.rs`) over the viewport.
     pub ray_traced: bool,
+    /// Show the diffuse maps under the solution (what the eye sees); off, the untextured
+    /// solution (each element in its mean colour, what radiosity computes).
+    pub textures: bool,
 }
 
 impl ViewSettings {
@@ -189,7 +192,7 @@ pub fn side_panel(
     egui::ScrollArea::vertical().show(ui, |ui| {
         solver_section(ui, state, snap, actions);
         ui.separator();
-        display_section(ui, state, actions);
+        display_section(ui, state, snap, actions);
         ui.separator();
         if let Some(s) = snap {
             stats::stats_section(ui, s, state.solver_failure.is_some());
@@ -321,10 +324,22 @@ fn fmt_size(x: f64) -> String {
     format!("{x:.4}")
 }
 
-fn display_section(ui: &mut egui::Ui, state: &mut PanelState, actions: &mut Vec<Action>) {
+fn display_section(
+    ui: &mut egui::Ui,
+    state: &mut PanelState,
+    snap: Option<&Snapshot>,
+    actions: &mut Vec<Action>,
+) {
     ui.heading("Display");
     let v = &mut state.view;
     ui.checkbox(&mut v.ambient, "ambient term");
+    let textured = snap.is_some_and(|s| s.textures.is_some());
+    ui.add_enabled(textured, egui::Checkbox::new(&mut v.textures, "textures"))
+        .on_hover_text(
+            "on: the diffuse maps under the computed light (what the eye sees); off: each \
+             element in its texture's mean colour (what radiosity computes)",
+        )
+        .on_disabled_hover_text("the scene has no diffuse maps");
     ui.add(egui::Slider::new(&mut v.exposure_stops, -8.0..=8.0).text("exposure (stops)"));
     ui.checkbox(&mut v.element_edges, "element wireframe");
     ui.checkbox(&mut v.patch_outlines, "patch outlines");

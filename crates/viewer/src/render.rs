@@ -4,6 +4,13 @@
 //! changed since the last upload (mesh; radiance and display correction, by their ids) and
 //! `paint` draws into egui's render pass, whose depth buffer eframe creates
 //! (`NativeOptions::depth_buffer`).
+//!
+//! Diffuse maps: the scene's [`TextureLayers`] become one `Rgba16Float` 2-D texture array
+//! (linear values, mip-mapped on the CPU, sampled with repeat wrap and trilinear
+//! filtering), uploaded once per scene; per drawn vertex a buffer carries the texture
+//! coordinates, the texture's mean over the vertex's elements and the layer, and another
+//! the material's emission (rewritten after an edit), so the shader can show
+//! `E + (B − E)·texel/mean` as `nusselt render` does.
 
 use std::sync::Arc;
 
@@ -11,6 +18,14 @@ use eframe::egui;
 use eframe::egui_wgpu::{self, wgpu};
 
 use super::snapshot::Snapshot;
+use super::textures::TextureLayers;
+
+/// The texture array's format: linear half floats (never an sRGB format: the texels are
+/// already linear).
+pub const TEXTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+/// Bytes per drawn vertex of the texturing buffer: uv (2 × f32), mean (3 × f32), layer + 1
+/// (u32).
+pub const TEXTURING_STRIDE: u64 = 24;
 
 /// Depth format: must match `NativeOptions::depth_buffer = 32`.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
@@ -55,6 +70,11 @@ struct MeshBuffers {
     /// The display correction (`Snapshot::correction`), scaled by the ambient uniform.
     correction: wgpu::Buffer,
     radiance: wgpu::Buffer,
+    /// uv, mean, layer + 1 per drawn vertex (zeros, i.e. untextured, without textures).
+    texturing: wgpu::Buffer,
+    /// The material's emission per drawn vertex, and the `reflectance_rev` it is of.
+    emission: wgpu::Buffer,
+    emission_rev: u64,
     element_lines: wgpu::Buffer,
     element_line_count: u32,
     patch_lines: wgpu::Buffer,
@@ -66,8 +86,14 @@ pub struct ViewportResources {
     mesh_pipeline: wgpu::RenderPipeline,
     line_pipeline: wgpu::RenderPipeline,
     uniform_buffer: wgpu::Buffer,
+    bind_group_layout: wgpu::BindGroupLayout,
+    sampler: wgpu::Sampler,
     bind_group: wgpu::BindGroup,
     mesh: Option<MeshBuffers>,
+    /// The layers on the GPU (`None`: the 1 × 1 placeholder).
+    textures: Option<Arc<TextureLayers>>,
+    /// Bytes of the texture array on the GPU (0 with the placeholder).
+    pub texture_bytes: usize,
     /// Bytes written by the last `prepare` (0 when nothing new arrived).
     pub last_upload_bytes: usize,
     /// Total uploads of radiance (one per new snapshot drawn).
@@ -92,18 +118,36 @@ impl ViewportResources {
         });
         let bind_group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("nusselt viewport"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: std::num::NonZeroU64::new(
-                        std::mem::size_of::<Uniforms>() as u64
-                    ),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: std::num::NonZeroU64::new(
+                            std::mem::size_of::<Uniforms>() as u64,
+                        ),
+                    },
+                    count: None,
                 },
-                count: None,
-            }],
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
         });
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("nusselt viewport"),
@@ -132,6 +176,24 @@ impl ViewportResources {
         ];
         let correction_attrs = [vec3(2)];
         let radiance_attrs = [vec3(3)];
+        let texturing_attrs = [
+            wgpu::VertexAttribute {
+                format: wgpu::VertexFormat::Float32x2,
+                offset: 0,
+                shader_location: 4,
+            },
+            wgpu::VertexAttribute {
+                format: wgpu::VertexFormat::Float32x3,
+                offset: 8,
+                shader_location: 5,
+            },
+            wgpu::VertexAttribute {
+                format: wgpu::VertexFormat::Uint32,
+                offset: 20,
+                shader_location: 6,
+            },
+        ];
+        let emission_attrs = [vec3(7)];
         let per_vertex = |stride: u64, attributes| {
             Some(wgpu::VertexBufferLayout {
                 array_stride: stride,
@@ -143,6 +205,8 @@ impl ViewportResources {
             per_vertex(16, &position_attrs[..]),
             per_vertex(12, &correction_attrs[..]),
             per_vertex(12, &radiance_attrs[..]),
+            per_vertex(TEXTURING_STRIDE, &texturing_attrs[..]),
+            per_vertex(12, &emission_attrs[..]),
         ];
         let mesh_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("nusselt mesh"),
@@ -207,23 +271,187 @@ impl ViewportResources {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("nusselt viewport"),
-            layout: &bind_group_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: uniform_buffer.as_entire_binding(),
-            }],
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("nusselt diffuse maps"),
+            address_mode_u: wgpu::AddressMode::Repeat,
+            address_mode_v: wgpu::AddressMode::Repeat,
+            address_mode_w: wgpu::AddressMode::Repeat,
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            mipmap_filter: wgpu::MipmapFilterMode::Linear,
+            ..Default::default()
         });
+        let placeholder = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("nusselt no diffuse maps"),
+            size: wgpu::Extent3d {
+                width: 1,
+                height: 1,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: TEXTURE_FORMAT,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let bind_group = Self::bind_group(
+            device,
+            &bind_group_layout,
+            &uniform_buffer,
+            &placeholder,
+            &sampler,
+        );
         Self {
             mesh_pipeline,
             line_pipeline,
             uniform_buffer,
+            bind_group_layout,
+            sampler,
             bind_group,
             mesh: None,
+            textures: None,
+            texture_bytes: 0,
             last_upload_bytes: 0,
             radiance_uploads: 0,
         }
+    }
+
+    fn bind_group(
+        device: &wgpu::Device,
+        layout: &wgpu::BindGroupLayout,
+        uniforms: &wgpu::Buffer,
+        texture: &wgpu::Texture,
+        sampler: &wgpu::Sampler,
+    ) -> wgpu::BindGroup {
+        let view = texture.create_view(&wgpu::TextureViewDescriptor {
+            label: Some("nusselt diffuse maps"),
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        });
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("nusselt viewport"),
+            layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: uniforms.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::Sampler(sampler),
+                },
+            ],
+        })
+    }
+
+    /// Uploads the scene's texture layers when they are not the ones on the GPU; returns
+    /// the bytes written. Layers the device cannot hold leave the placeholder (untextured).
+    fn upload_textures(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        layers: Option<&Arc<TextureLayers>>,
+    ) -> usize {
+        let same = match (&self.textures, layers) {
+            (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+            (None, None) => true,
+            _ => false,
+        };
+        if same {
+            return 0;
+        }
+        self.textures = layers.cloned();
+        let Some(t) = layers else {
+            // Back to the placeholder: the old array is dropped with its bind group.
+            let placeholder = device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("nusselt no diffuse maps"),
+                size: wgpu::Extent3d {
+                    width: 1,
+                    height: 1,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: TEXTURE_FORMAT,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            });
+            self.bind_group = Self::bind_group(
+                device,
+                &self.bind_group_layout,
+                &self.uniform_buffer,
+                &placeholder,
+                &self.sampler,
+            );
+            self.texture_bytes = 0;
+            return 0;
+        };
+        let limits = device.limits();
+        if t.size > limits.max_texture_dimension_2d || t.layers > limits.max_texture_array_layers {
+            eprintln!(
+                "viewer: {} texture layers of {}² exceed this GPU's limits ({} layers of {}²); drawing untextured",
+                t.layers, t.size, limits.max_texture_array_layers, limits.max_texture_dimension_2d
+            );
+            return 0;
+        }
+        let texture = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("nusselt diffuse maps"),
+            size: wgpu::Extent3d {
+                width: t.size,
+                height: t.size,
+                depth_or_array_layers: t.layers,
+            },
+            mip_level_count: t.mip_levels,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: TEXTURE_FORMAT,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        for (k, texels) in t.mips.iter().enumerate() {
+            let side = (t.size >> k).max(1);
+            queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &texture,
+                    mip_level: k as u32,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
+                bytemuck::cast_slice(texels),
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(side * super::textures::TEXEL_BYTES as u32),
+                    rows_per_image: Some(side),
+                },
+                wgpu::Extent3d {
+                    width: side,
+                    height: side,
+                    depth_or_array_layers: t.layers,
+                },
+            );
+        }
+        self.bind_group = Self::bind_group(
+            device,
+            &self.bind_group_layout,
+            &self.uniform_buffer,
+            &texture,
+            &self.sampler,
+        );
+        self.texture_bytes = t.gpu_bytes();
+        eprintln!(
+            "viewer: uploaded {} texture layers of {}² ({} mips): {:.1} MB on the GPU",
+            t.layers,
+            t.size,
+            t.mip_levels,
+            self.texture_bytes as f64 / 1e6
+        );
+        self.texture_bytes
     }
 
     fn vertex_buffer(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
@@ -239,7 +467,7 @@ impl ViewportResources {
     /// Uploads what differs from what is on the GPU.
     fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, snap: &Snapshot) {
         let g = &snap.geometry;
-        let mut bytes = 0usize;
+        let mut bytes = self.upload_textures(device, queue, snap.textures.as_ref());
         if self.mesh.as_ref().is_none_or(|m| m.geometry_id != g.id) {
             let n = g.positions.len() as u64;
             let mut packed: Vec<u8> = Vec::with_capacity(g.positions.len() * 16);
@@ -270,6 +498,18 @@ impl ViewportResources {
                 g.patch_lines.len() as u64 * 12,
             );
             queue.write_buffer(&patch_lines, 0, bytemuck::cast_slice(&g.patch_lines));
+            // Zero-initialised (untextured) unless the geometry has textures.
+            let texturing = Self::vertex_buffer(device, "nusselt texturing", n * TEXTURING_STRIDE);
+            if let Some(t) = &g.textures {
+                let mut packed: Vec<u8> = Vec::with_capacity(t.uv.len() * 24);
+                for ((uv, mean), layer) in t.uv.iter().zip(&t.mean).zip(&t.layer) {
+                    packed.extend_from_slice(bytemuck::cast_slice(uv));
+                    packed.extend_from_slice(bytemuck::cast_slice(mean));
+                    packed.extend_from_slice(&layer.to_ne_bytes());
+                }
+                queue.write_buffer(&texturing, 0, &packed);
+                bytes += packed.len();
+            }
             bytes += packed.len()
                 + g.indices.len() * 4
                 + g.element_lines.len() * 12
@@ -283,6 +523,9 @@ impl ViewportResources {
                 indices,
                 correction: Self::vertex_buffer(device, "nusselt correction", n * 12),
                 radiance: Self::vertex_buffer(device, "nusselt radiance", n * 12),
+                texturing,
+                emission: Self::vertex_buffer(device, "nusselt emission", n * 12),
+                emission_rev: u64::MAX,
                 element_lines,
                 element_line_count: g.element_lines.len() as u32,
                 patch_lines,
@@ -290,6 +533,22 @@ impl ViewportResources {
             });
         }
         let Some(m) = self.mesh.as_mut() else { return };
+        // Only the textured path reads the emission (`E + (B − E)·texel/mean`).
+        if g.textures.is_some() && m.emission_rev != snap.reflectance_rev {
+            let emission: Vec<[f32; 3]> = g
+                .patch
+                .iter()
+                .map(|&p| {
+                    let mat = g.patch_material[p as usize] as usize;
+                    snap.materials
+                        .get(mat)
+                        .map_or([0.0; 3], |m| m.emission.as_vec3().to_array())
+                })
+                .collect();
+            queue.write_buffer(&m.emission, 0, bytemuck::cast_slice(&emission));
+            m.emission_rev = snap.reflectance_rev;
+            bytes += emission.len() * 12;
+        }
         let fits = |v: &Vec<[f32; 3]>| v.len() == m.vertex_count as usize;
         if m.radiance_seq != snap.seq && fits(&snap.radiance) && fits(&snap.correction) {
             queue.write_buffer(&m.correction, 0, bytemuck::cast_slice(&snap.correction));
@@ -309,6 +568,8 @@ impl ViewportResources {
         pass.set_vertex_buffer(0, m.positions.slice(..));
         pass.set_vertex_buffer(1, m.correction.slice(..));
         pass.set_vertex_buffer(2, m.radiance.slice(..));
+        pass.set_vertex_buffer(3, m.texturing.slice(..));
+        pass.set_vertex_buffer(4, m.emission.slice(..));
         pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
         pass.draw_indexed(0..m.index_count, 0, 0..1);
         if overlays.element_edges && m.element_line_count > 0 {

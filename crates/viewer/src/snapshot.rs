@@ -9,6 +9,10 @@
 //! docs/VIEWER.md). Radiance is stored without the ambient term together with the
 //! per-vertex display correction `ρ·G` (the solver's ambient term, regional for shooting:
 //! `crates/core/src/solver/ambient.rs`), so the ambient toggle is a uniform multiplier of it.
+//!
+//! Textured patches ([`VertexTextures`]) also split their drawn vertices where the texture
+//! coordinates jump (a seam between two faces of one patch), so each drawn vertex has one
+//! uv.
 
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -20,8 +24,23 @@ use nusselt_core::formfactor::FormFactorMethod;
 use nusselt_core::geometry::Bvh;
 use nusselt_core::geometry::bvh::TriangleInput;
 use nusselt_core::mesh::{Mesh, PatchId};
-use nusselt_core::scene::{Camera, Material, Rgb};
-use nusselt_core::solver::SolverKind;
+use nusselt_core::scene::{Camera, Material, Rgb, Scene};
+use nusselt_core::solver::{Problem, SolverKind};
+
+/// Per drawn vertex, what the shader needs to draw a diffuse map under the solution.
+#[derive(Debug, Default)]
+pub struct VertexTextures {
+    /// Texture coordinates (the face's `vt` at the vertex, with the material's `-s`/`-o`
+    /// transform applied; OBJ convention, v = 0 at the image's bottom row).
+    pub uv: Vec<[f32; 2]>,
+    /// The mean of the texture over the vertex's elements: the mean of
+    /// [`Problem::element_texture`] over the elements with a corner at the vertex (all in
+    /// one patch, with this uv), weighted by their areas. The shader divides the texel by it, as the CPU passes divide by the
+    /// element's own mean.
+    pub mean: Vec<[f32; 3]>,
+    /// Texture-array layer + 1 ([`crate::textures::diffuse_layers`]); 0 where untextured.
+    pub layer: Vec<u32>,
+}
 
 /// Mesh arrays for drawing and picking; rebuilt only when the mesh changes.
 #[derive(Debug)]
@@ -36,6 +55,8 @@ pub struct Geometry {
     pub source_vertex: Vec<u32>,
     /// Drawn vertices of the display triangles, three per triangle (the index buffer).
     pub indices: Vec<u32>,
+    /// Texture coordinates, means and layers; `None` for an untextured problem.
+    pub textures: Option<VertexTextures>,
     /// Element edges as line-list endpoints.
     pub element_lines: Vec<[f32; 3]>,
     /// Patch outlines as line-list endpoints.
@@ -55,14 +76,66 @@ pub struct Geometry {
     pub element_size: f64,
 }
 
+/// What [`Geometry::build`] reads to texture the drawn vertices.
+struct Texturing<'a> {
+    scene: &'a Scene,
+    element_texture: &'a [Rgb],
+    layer_of: Vec<Option<u32>>,
+}
+
+impl Texturing<'_> {
+    /// Layer + 1 and uv of mesh vertex `p` on element `e` of `mesh`; `None` where the
+    /// element's material has no diffuse map on the GPU or its face has no `vt`.
+    fn at(&self, mesh: &Mesh, e: usize, p: DVec3) -> Option<(u32, [f32; 2])> {
+        let el = &mesh.elements[e];
+        let material = mesh.patch(el.patch).material;
+        let m = self.scene.materials.get(material.0 as usize)?;
+        let layer = (*self.layer_of.get(m.diffuse_map?.0 as usize)?)?;
+        let uv = self.scene.faces.get(el.face as usize)?.uv_at(p)?;
+        let uv = m.diffuse_uv.apply(uv);
+        Some((layer + 1, uv.as_vec2().to_array()))
+    }
+}
+
+/// The same point of texture space (within rounding of the two faces' interpolation).
+fn same_uv(a: [f32; 2], b: [f32; 2]) -> bool {
+    let tol = |x: f32, y: f32| (x - y).abs() <= 1e-5 * x.abs().max(y.abs()).max(1.0);
+    tol(a[0], b[0]) && tol(a[1], b[1])
+}
+
 impl Geometry {
+    /// Untextured drawing arrays of a mesh.
     pub fn from_mesh(id: u64, mesh: &Mesh) -> Geometry {
+        Self::build(id, mesh, None)
+    }
+
+    /// Drawing arrays of a problem's mesh, with its diffuse maps' texture coordinates and
+    /// means when it has any ([`Problem::element_texture`] not empty).
+    pub fn from_problem(id: u64, problem: &Problem) -> Geometry {
+        let texturing = (!problem.element_texture().is_empty()).then(|| Texturing {
+            scene: &problem.scene,
+            element_texture: problem.element_texture(),
+            layer_of: crate::textures::diffuse_layers(&problem.scene),
+        });
+        Self::build(id, &problem.mesh, texturing)
+    }
+
+    fn build(id: u64, mesh: &Mesh, texturing: Option<Texturing>) -> Geometry {
         let n = mesh.vertices.len();
         let mut positions = Vec::with_capacity(n);
         let mut patch = Vec::with_capacity(n);
         let mut source_vertex = Vec::with_capacity(n);
         let mut indices = Vec::with_capacity(mesh.triangles.len() * 3);
+        // First drawn vertex of each (mesh vertex, patch); further ones (other uvs) chained
+        // through `next`.
         let mut drawn: HashMap<(u32, u32), u32> = HashMap::with_capacity(n);
+        let mut next: Vec<u32> = Vec::with_capacity(n);
+        let mut tex = texturing.as_ref().map(|_| VertexTextures::default());
+        // Per drawn vertex: Σ area × element mean, Σ area, Σ element mean, count (for a
+        // vertex of zero-area elements only), and the last element counted (an element's
+        // one or two display triangles are consecutive, so each counts once).
+        let mut mean_sum: Vec<(DVec3, f64, DVec3, u32)> = Vec::new();
+        let mut last_element: Vec<u32> = Vec::new();
         let mut inputs = Vec::with_capacity(mesh.triangles.len());
         for (i, (t, e)) in mesh
             .triangles
@@ -71,21 +144,85 @@ impl Geometry {
             .enumerate()
         {
             let pid = mesh.elements[e.0 as usize].patch.0;
-            for &v in t {
-                let d = *drawn.entry((v, pid)).or_insert_with(|| {
-                    positions.push(mesh.vertices[v as usize].as_vec3().to_array());
+            let corners = t.map(|v| mesh.vertices[v as usize]);
+            let area = mesh.elements[e.0 as usize].area;
+            for (&v, &p) in t.iter().zip(&corners) {
+                let here = texturing.as_ref().and_then(|x| x.at(mesh, e.0 as usize, p));
+                let uv_of = |d: u32, tex: &Option<VertexTextures>| {
+                    tex.as_ref()
+                        .and_then(|x| (x.layer[d as usize] != 0).then(|| x.uv[d as usize]))
+                };
+                let matches = |d: u32, tex: &Option<VertexTextures>| match (uv_of(d, tex), here) {
+                    (None, None) => true,
+                    (Some(a), Some((_, b))) => same_uv(a, b),
+                    _ => false,
+                };
+                let mut found = None;
+                let mut last = None;
+                let mut at = drawn.get(&(v, pid)).copied();
+                while let Some(d) = at {
+                    if matches(d, &tex) {
+                        found = Some(d);
+                        break;
+                    }
+                    last = Some(d);
+                    at = (next[d as usize] != u32::MAX).then(|| next[d as usize]);
+                }
+                let d = found.unwrap_or_else(|| {
+                    let d = positions.len() as u32;
+                    positions.push(p.as_vec3().to_array());
                     patch.push(pid);
                     source_vertex.push(v);
-                    source_vertex.len() as u32 - 1
+                    next.push(u32::MAX);
+                    match last {
+                        Some(l) => next[l as usize] = d,
+                        None => {
+                            drawn.insert((v, pid), d);
+                        }
+                    }
+                    if let Some(x) = tex.as_mut() {
+                        let (layer, uv) = here.unwrap_or((0, [0.0; 2]));
+                        x.layer.push(layer);
+                        x.uv.push(uv);
+                        mean_sum.push((DVec3::ZERO, 0.0, DVec3::ZERO, 0));
+                        last_element.push(u32::MAX);
+                    }
+                    d
                 });
+                if let Some(x) = &texturing
+                    && let Some(m) = x.element_texture.get(e.0 as usize)
+                    && last_element[d as usize] != e.0
+                {
+                    last_element[d as usize] = e.0;
+                    let s = &mut mean_sum[d as usize];
+                    s.0 += *m * area;
+                    s.1 += area;
+                    s.2 += *m;
+                    s.3 += 1;
+                }
                 indices.push(d);
             }
             inputs.push(TriangleInput {
-                vertices: t.map(|v| mesh.vertices[v as usize]),
+                vertices: corners,
                 id: i as u32,
                 // Matches the viewport, which culls back faces.
                 cull_back: true,
             });
+        }
+        if let Some(x) = tex.as_mut() {
+            x.mean = mean_sum
+                .iter()
+                .map(|&(s, a, plain, k)| {
+                    let m = if a > 0.0 {
+                        s / a
+                    } else if k > 0 {
+                        plain / k as f64
+                    } else {
+                        Rgb::ONE
+                    };
+                    m.as_vec3().to_array()
+                })
+                .collect();
         }
         let mut element_lines = Vec::with_capacity(mesh.elements.len() * 8);
         for e in &mesh.elements {
@@ -110,6 +247,7 @@ impl Geometry {
             patch,
             source_vertex,
             indices,
+            textures: tex,
             element_lines,
             patch_lines,
             bvh: Bvh::build(&inputs),
@@ -221,6 +359,8 @@ pub struct Snapshot {
     pub scene_source: Option<PathBuf>,
     /// Changes whenever a new scene is installed (not on re-mesh).
     pub scene_rev: u64,
+    /// The scene's diffuse maps, for the GPU's texture array; `None` when it has none.
+    pub textures: Option<Arc<crate::textures::TextureLayers>>,
     /// The scene's own camera, or one that frames it.
     pub scene_camera: Camera,
     pub two_sided: bool,
@@ -303,5 +443,239 @@ mod tests {
             g.positions.len(),
             g.indices.len()
         );
+    }
+}
+
+#[cfg(test)]
+mod texture_tests {
+    use super::*;
+    use crate::textures::TextureLayers;
+    use nusselt_core::scene::{LoadOptions, Scene};
+    use nusselt_core::solver::SolverConfig;
+
+    /// 4 × 4 checkerboard, red where x + y is even (y down from the top row), else blue.
+    fn write_checker(path: &std::path::Path) {
+        image::RgbImage::from_fn(4, 4, |x, y| {
+            if (x + y) % 2 == 0 {
+                image::Rgb([255, 0, 0])
+            } else {
+                image::Rgb([0, 0, 255])
+            }
+        })
+        .save(path)
+        .expect("png");
+    }
+
+    /// The unit square y = 0 with vt = (x, z) (material `checker`, or `scaled` with
+    /// `-s 2 2`), and an untextured square at y = 2 facing down; the problem at element
+    /// size `size` with whole squares as patches (their elements share vertices).
+    fn textured_problem(material: &str, size: f64) -> (Problem, tempfile::TempDir) {
+        let dir = tempfile::tempdir().expect("temp dir");
+        write_checker(&dir.path().join("checker.png"));
+        std::fs::write(
+            dir.path().join("s.mtl"),
+            "newmtl checker\nKd 0.8 0.8 0.8\nmap_Kd checker.png\n\
+             newmtl scaled\nKd 0.8 0.8 0.8\nmap_Kd -s 2 2 1 checker.png\n\
+             newmtl light\nKd 0.5 0.5 0.5\nKe 1 1 1\n",
+        )
+        .expect("mtl");
+        let obj = format!(
+            "mtllib s.mtl\nvt 0 0\nvt 0 1\nvt 1 1\nvt 1 0\n\
+             v 0 0 0\nv 0 0 1\nv 1 0 1\nv 1 0 0\nusemtl {material}\nf 1/1 2/2 3/3 4/4\n\
+             v 0 2 0\nv 1 2 0\nv 1 2 1\nv 0 2 1\nusemtl light\nf 5 6 7 8\n"
+        );
+        let path = dir.path().join("s.obj");
+        std::fs::write(&path, obj).expect("obj");
+        let scene = Scene::load_obj(&path, &LoadOptions::default()).expect("loads");
+        let config = SolverConfig {
+            element_size: Some(size),
+            patch_size: Some(1.0),
+            ..Default::default()
+        };
+        (Problem::new(scene, config).expect("problem"), dir)
+    }
+
+    fn close(a: [f32; 3], b: Rgb, tol: f64) -> bool {
+        (0..3).all(|k| (a[k] as f64 - b[k]).abs() <= tol)
+    }
+
+    #[test]
+    fn a_textured_quad_has_its_vt_and_its_mean_at_the_corners() {
+        // One element over the whole square: the corners' uvs are the OBJ's vt, and the mean
+        // is the element's (the whole checker's: half red, half blue).
+        let (problem, _dir) = textured_problem("checker", 2.0);
+        let g = Geometry::from_problem(1, &problem);
+        let t = g.textures.as_ref().expect("textured");
+        let textured: Vec<usize> = (0..g.positions.len())
+            .filter(|&d| t.layer[d] == 1)
+            .collect();
+        assert_eq!(textured.len(), 4, "{:?}", t.layer);
+        let e = problem
+            .mesh
+            .elements
+            .iter()
+            .position(|e| problem.scene.faces[e.face as usize].uvs.is_some())
+            .expect("textured element");
+        let mean = problem.element_texture()[e];
+        assert!(
+            (mean.x - mean.z).abs() < 1e-6 && mean.y.abs() < 1e-9,
+            "{mean}"
+        );
+        for d in textured {
+            let [x, _, z] = g.positions[d];
+            assert_eq!(t.uv[d], [x, z], "vertex at {:?}", g.positions[d]);
+            assert!(close(t.mean[d], mean, 1e-6), "{:?} vs {mean}", t.mean[d]);
+        }
+        // The light's square has no map.
+        assert!(t.layer.iter().filter(|&&l| l == 0).count() >= 4);
+    }
+
+    #[test]
+    fn shared_vertices_average_their_elements_means_by_area() {
+        // Elements of a quarter: each covers one checker cell, so each element is pure red or
+        // blue, and a vertex's mean is the area-weighted mean of the elements around it.
+        let (problem, _dir) = textured_problem("checker", 0.25);
+        let mesh = &problem.mesh;
+
+        let g = Geometry::from_problem(1, &problem);
+        let t = g.textures.as_ref().expect("textured");
+        let tex = problem.element_texture();
+        for e in mesh.elements.iter().zip(tex) {
+            if mesh.patch(e.0.patch).material == mesh.patch(PatchId(0)).material {
+                let m = *e.1;
+                assert!(m.max_element() > 0.99 && m.min_element() < 1e-6, "{m}");
+            }
+        }
+        let mut checked = 0;
+        for d in 0..g.positions.len() {
+            if t.layer[d] == 0 {
+                continue;
+            }
+            let v = g.source_vertex[d] as usize;
+            let p = mesh.vertices[v];
+            assert_eq!(t.uv[d], [p.x as f32, p.z as f32]);
+            // Independently: the elements of this patch with a corner at this vertex.
+            let (mut sum, mut area) = (Rgb::ZERO, 0.0);
+            for (element, m) in mesh.elements.iter().zip(tex) {
+                if element.patch.0 == g.patch[d] && element.vertex_ids().contains(&(v as u32)) {
+                    sum += *m * element.area;
+                    area += element.area;
+                }
+            }
+            assert!(close(t.mean[d], sum / area, 1e-6), "vertex {p}");
+            checked += 1;
+        }
+        assert!(checked >= 25, "{checked} textured vertices");
+        // An interior vertex between two red and two blue cells: purple.
+        let centre = (0..g.positions.len())
+            .find(|&d| t.layer[d] == 1 && g.positions[d] == [0.5, 0.0, 0.5])
+            .expect("centre vertex");
+        assert!(close(t.mean[centre], Rgb::new(0.5, 0.0, 0.5), 1e-6));
+    }
+
+    #[test]
+    fn the_layer_read_at_the_vertex_uv_is_the_cpu_texel() {
+        // What the shader samples (layer texels top row first, at (u, 1 − v), repeating)
+        // equals the core's texel at the element centres, with the material's `-s 2 2`.
+        let (problem, _dir) = textured_problem("scaled", 0.25);
+        let layers = TextureLayers::build(&problem.scene).expect("layers");
+        assert_eq!((layers.layers, layers.size, layers.mip_levels), (1, 4, 3));
+        assert_eq!(layers.gpu_bytes(), (16 + 4 + 1) * 8);
+        let g = Geometry::from_problem(1, &problem);
+        let t = g.textures.as_ref().expect("textured");
+        // Bilinear with repeat at level 0, as the sampler magnifies.
+        let texel = |uv: [f32; 2]| -> Rgb {
+            let n = layers.size as i64;
+            let read = |x: i64, y: i64| {
+                let i = 4 * (y.rem_euclid(n) * n + x.rem_euclid(n)) as usize;
+                let c = |k: usize| half::f16::from_bits(layers.mips[0][i + k]).to_f64();
+                Rgb::new(c(0), c(1), c(2))
+            };
+            let x = uv[0] as f64 * n as f64 - 0.5;
+            let y = (1.0 - uv[1] as f64) * n as f64 - 0.5;
+            let (x0, y0) = (x.floor(), y.floor());
+            let (fx, fy) = (x - x0, y - y0);
+            let (x0, y0) = (x0 as i64, y0 as i64);
+            read(x0, y0) * (1.0 - fx) * (1.0 - fy)
+                + read(x0 + 1, y0) * fx * (1.0 - fy)
+                + read(x0, y0 + 1) * (1.0 - fx) * fy
+                + read(x0 + 1, y0 + 1) * fx * fy
+        };
+        let mut checked = 0;
+        for (tri, el) in g.indices.chunks_exact(3).zip(&g.triangle_element) {
+            if tri.iter().any(|&d| t.layer[d as usize] == 0) {
+                continue;
+            }
+            let uv = tri.iter().fold([0.0f32; 2], |a, &d| {
+                let u = t.uv[d as usize];
+                [a[0] + u[0] / 3.0, a[1] + u[1] / 3.0]
+            });
+            let e = &problem.mesh.elements[*el as usize];
+            let c = tri.iter().fold(DVec3::ZERO, |a, &d| {
+                a + glam::Vec3::from(g.positions[d as usize]).as_dvec3() / 3.0
+            });
+            let (want, _) = problem.scene.texel(e.face as usize, c).expect("texel");
+            assert!((texel(uv) - want).abs().max_element() < 2e-3, "{c}: {want}");
+            checked += 1;
+        }
+        assert!(checked >= 16);
+    }
+
+    #[test]
+    fn a_uv_seam_splits_the_drawn_vertices() {
+        // Two small triangles folded along their shared edge (one cluster patch, an element
+        // each) whose vt differ along that edge: each triangle's corners keep their own uvs
+        // there (two drawn vertices per end of the edge), elsewhere one.
+        let dir = tempfile::tempdir().expect("temp dir");
+        write_checker(&dir.path().join("checker.png"));
+        std::fs::write(
+            dir.path().join("s.mtl"),
+            "newmtl checker\nKd 0.8 0.8 0.8\nmap_Kd checker.png\n",
+        )
+        .expect("mtl");
+        let obj = "mtllib s.mtl\nvt 0 0\nvt 0 1\nvt 1 1\nvt 1 0\nvt 3 3\nvt 5 5\n\
+                   v 0 0 0\nv 0 0 1\nv 1 0 1\nv 1 0.3 0\nusemtl checker\n\
+                   f 1/1 2/2 3/3\nf 1/5 3/6 4/4\n";
+        let path = dir.path().join("s.obj");
+        std::fs::write(&path, obj).expect("obj");
+        let scene = Scene::load_obj(&path, &LoadOptions::default()).expect("loads");
+        let config = SolverConfig {
+            element_size: Some(2.0),
+            patch_size: Some(2.0),
+            ..Default::default()
+        };
+        let problem = Problem::new(scene, config).expect("problem");
+        assert_eq!(problem.mesh.patches.len(), 1);
+        assert_eq!(problem.mesh.elements.len(), 2);
+        let g = Geometry::from_problem(1, &problem);
+        let t = g.textures.as_ref().expect("textured");
+        let uvs_at = |p: [f32; 3]| {
+            let mut uv: Vec<[f32; 2]> = (0..g.positions.len())
+                .filter(|&d| g.positions[d] == p)
+                .map(|d| t.uv[d])
+                .collect();
+            uv.sort_by(|a, b| a.partial_cmp(b).expect("finite"));
+            uv
+        };
+        assert_eq!(uvs_at([0.0, 0.0, 0.0]), vec![[0.0, 0.0], [3.0, 3.0]]);
+        assert_eq!(uvs_at([1.0, 0.0, 1.0]), vec![[1.0, 1.0], [5.0, 5.0]]);
+        assert_eq!(uvs_at([0.0, 0.0, 1.0]), vec![[0.0, 1.0]]);
+        assert_eq!(uvs_at([1.0, 0.3, 0.0]), vec![[1.0, 0.0]]);
+    }
+
+    #[test]
+    fn an_untextured_problem_has_no_texturing() {
+        let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+        let config = SolverConfig {
+            element_size: Some(120.0),
+            ..Default::default()
+        };
+        let problem = Problem::new(scene, config).expect("problem");
+        let g = Geometry::from_problem(1, &problem);
+        assert!(g.textures.is_none());
+        assert!(TextureLayers::build(&problem.scene).is_none());
+        let plain = Geometry::from_mesh(1, &problem.mesh);
+        assert_eq!(g.positions, plain.positions);
+        assert_eq!(g.indices, plain.indices);
     }
 }

@@ -119,7 +119,16 @@ impl ViewerApp {
             ids: [shooter, self.panel.selection.unwrap_or(NO_PATCH), flags, 0],
             element_line_color: [0.0, 0.0, 0.0, 0.45],
             patch_line_color: [1.0, 1.0, 1.0, 0.8],
-            params: [1e-3, 0.0, 0.0, 0.0],
+            params: [
+                1e-3,
+                if view.textures && snap.textures.is_some() {
+                    1.0
+                } else {
+                    0.0
+                },
+                0.0,
+                0.0,
+            ],
         };
         ui.painter().add(egui_wgpu::Callback::new_paint_callback(
             rect,

@@ -49,6 +49,18 @@ pub(super) fn stats_section(ui: &mut egui::Ui, s: &Snapshot, failed: bool) {
                 format!("{:.1} MB", st.matrix_bytes as f64 / 1e6),
             );
         }
+        if let Some(t) = &s.textures {
+            row(
+                ui,
+                "textures",
+                format!(
+                    "{} × {}², {:.1} MB on the GPU",
+                    t.layers,
+                    t.size,
+                    t.gpu_bytes() as f64 / 1e6
+                ),
+            );
+        }
         row(ui, "elapsed", format!("{:.2} s", st.elapsed_seconds));
         let a = s.ambient;
         // The classic global term; the display adds the solver's own (regional) one.

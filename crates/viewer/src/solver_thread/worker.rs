@@ -37,6 +37,8 @@ pub(super) struct Worker {
     pub(super) geometry: Option<Arc<Geometry>>,
     pub(super) reflectance: Arc<Vec<[f32; 3]>>,
     pub(super) reflectance_rev: u64,
+    /// The current scene's diffuse maps as texture-array layers (built once per scene).
+    pub(super) textures: Option<Arc<crate::textures::TextureLayers>>,
     pub(super) next_id: u64,
     pub(super) scene_rev: u64,
     /// The first view of the current scene (`render::view::default_camera`), chosen once
@@ -120,6 +122,7 @@ impl Worker {
             geometry: None,
             reflectance: Arc::new(Vec::new()),
             reflectance_rev: 0,
+            textures: None,
             next_id: 1,
             scene_rev: 0,
             scene_camera: nusselt_core::scene::Camera::cornell(),
@@ -346,6 +349,18 @@ impl Worker {
                 self.scene_camera = nusselt_core::render::view::default_camera(&problem.scene);
                 self.config = config;
                 self.solver = None;
+                let started = Instant::now();
+                self.textures = crate::textures::TextureLayers::build(&problem.scene).map(Arc::new);
+                if let Some(t) = &self.textures {
+                    eprintln!(
+                        "viewer: {} texture layers of {}² ({} mips), {:.1} MB on the GPU, prepared in {:.2} s",
+                        t.layers,
+                        t.size,
+                        t.mip_levels,
+                        t.gpu_bytes() as f64 / 1e6,
+                        started.elapsed().as_secs_f64()
+                    );
+                }
                 self.build(problem, Default::default());
                 self.scene_rev += 1;
                 self.new_geometry();
@@ -358,7 +373,7 @@ impl Worker {
 
     pub(super) fn new_geometry(&mut self) {
         let Some(solver) = &self.solver else { return };
-        let g = Geometry::from_mesh(self.next_id, &solver.problem().mesh);
+        let g = Geometry::from_problem(self.next_id, solver.problem());
         self.next_id += 1;
         self.reflectance = Arc::new(vertex_reflectance(&g, &solver.problem().scene.materials));
         self.reflectance_rev += 1;
