@@ -1,6 +1,7 @@
 //! The Lights section of the side panel: every light of the scene (emitting materials too),
-//! add a sky, a sun or a point light, change its power, direction or position, delete it.
-//! Each change is sent whole as the new list; the solver continues from its current state.
+//! add a sky, a sun or a point light, change its power, direction or position, switch it
+//! off and on, delete it. Each change is sent whole as the new list of lights that are on;
+//! the solver continues from its current state.
 
 use eframe::egui;
 use nusselt_core::scene::{Light, Rgb};
@@ -60,19 +61,36 @@ fn point_position(ui: &mut egui::Ui, p: &mut glam::DVec3, step: f64) -> bool {
     .inner
 }
 
-/// One light's controls; returns whether it changed and whether it is to be deleted.
-fn light_row(ui: &mut egui::Ui, k: usize, light: &mut Light, step: f64) -> (bool, bool) {
-    let mut changed = false;
-    let mut delete = false;
+fn kind(light: &Light) -> &'static str {
+    match light {
+        Light::Sky { .. } => "sky",
+        Light::Sun { .. } => "sun",
+        Light::Point { .. } => "point",
+    }
+}
+
+/// What the user did to one light in its row.
+#[derive(Default)]
+struct RowEdit {
+    changed: bool,
+    delete: bool,
+    switch_off: bool,
+}
+
+/// One light's controls.
+fn light_row(ui: &mut egui::Ui, k: usize, light: &mut Light, step: f64) -> RowEdit {
+    let mut edit = RowEdit::default();
     ui.horizontal(|ui| {
-        let kind = match light {
-            Light::Sky { .. } => "sky",
-            Light::Sun { .. } => "sun",
-            Light::Point { .. } => "point",
-        };
-        ui.label(format!("{}. {kind}", k + 1));
-        delete = ui.small_button("delete").clicked();
+        let mut on = true;
+        if ui
+            .checkbox(&mut on, format!("{}. {}", k + 1, kind(light)))
+            .changed()
+        {
+            edit.switch_off = true;
+        }
+        edit.delete = ui.small_button("delete").clicked();
     });
+    let mut changed = false;
     match light {
         Light::Sky { radiance } => changed |= strength(ui, "radiance", radiance, 100.0),
         Light::Sun {
@@ -91,11 +109,34 @@ fn light_row(ui: &mut egui::Ui, k: usize, light: &mut Light, step: f64) -> (bool
             changed |= strength(ui, "intensity", intensity, 1e9);
         }
     }
-    (changed, delete)
+    edit.changed = changed;
+    edit
 }
 
-/// The section; pushes [`Action::SetLights`] with the whole new list on any change.
-pub fn lights_section(ui: &mut egui::Ui, snap: &Snapshot, actions: &mut Vec<Action>) {
+/// The lights switched off, each with a box to switch it on again; returns the one switched
+/// on, if any.
+fn off_rows(ui: &mut egui::Ui, off: &[Light]) -> Option<usize> {
+    let mut back = None;
+    for (k, l) in off.iter().enumerate() {
+        let mut on = false;
+        if ui.checkbox(&mut on, format!("{} (off)", kind(l))).changed() {
+            back = Some(k);
+        }
+    }
+    back
+}
+
+/// The section; pushes [`Action::SetLights`] with the whole new list on any change. `off`
+/// holds the lights switched off (for the scene `off.0`).
+pub fn lights_section(
+    ui: &mut egui::Ui,
+    off: &mut (u64, Vec<Light>),
+    snap: &Snapshot,
+    actions: &mut Vec<Action>,
+) {
+    if off.0 != snap.scene_rev {
+        *off = (snap.scene_rev, Vec::new());
+    }
     egui::CollapsingHeader::new("Lights")
         .default_open(true)
         .show(ui, |ui| {
@@ -106,14 +147,21 @@ pub fn lights_section(ui: &mut egui::Ui, snap: &Snapshot, actions: &mut Vec<Acti
             let mut changed = false;
             let mut remove = None;
             for (k, l) in lights.iter_mut().enumerate() {
-                let (c, d) = light_row(ui, k, l, size * 0.005);
-                changed |= c;
-                if d {
-                    remove = Some(k);
+                let edit = light_row(ui, k, l, size * 0.005);
+                changed |= edit.changed;
+                if edit.delete || edit.switch_off {
+                    remove = Some((k, edit.switch_off));
                 }
             }
-            if let Some(k) = remove {
-                lights.remove(k);
+            if let Some((k, keep)) = remove {
+                let l = lights.remove(k);
+                if keep {
+                    off.1.push(l);
+                }
+                changed = true;
+            }
+            if let Some(k) = off_rows(ui, &off.1) {
+                lights.push(off.1.remove(k));
                 changed = true;
             }
             for m in snap.materials.iter().filter(|m| m.is_emitter()) {
@@ -167,6 +215,7 @@ mod tests {
 
     struct Panel {
         snapshot: Arc<Snapshot>,
+        off: (u64, Vec<Light>),
         actions: Vec<Action>,
     }
 
@@ -174,8 +223,11 @@ mod tests {
         let mut h = Harness::builder()
             .with_size(egui::vec2(420.0, 700.0))
             .build_ui_state(
-                |ui, p: &mut Panel| lights_section(ui, &p.snapshot.clone(), &mut p.actions),
+                |ui, p: &mut Panel| {
+                    lights_section(ui, &mut p.off, &p.snapshot.clone(), &mut p.actions)
+                },
                 Panel {
+                    off: (snapshot.scene_rev, Vec::new()),
                     snapshot,
                     actions: Vec::new(),
                 },
@@ -212,5 +264,38 @@ mod tests {
         h.get_by_label("delete").click();
         h.run();
         assert!(sent(&h).is_empty());
+    }
+
+    /// Switched off, a light leaves the solver's list and stays in the panel; switched on
+    /// again, it comes back unchanged.
+    #[test]
+    fn a_light_switched_off_and_on_comes_back() {
+        let sun = Light::Sun {
+            direction: glam::DVec3::Y,
+            irradiance: Rgb::splat(2.0),
+            angular_radius: 0.0,
+        };
+        let snap = snapshot_after(vec![Command::SetLights(vec![sun])], |s| s.lights.len() == 1);
+        let mut h = harness(snap.clone());
+        // As the app does: the next snapshot holds the list that was sent.
+        let solved = |h: &mut Harness<'_, Panel>| {
+            let lights = sent(h);
+            let next = Snapshot {
+                lights: Arc::new(lights.clone()),
+                ..(*h.state().snapshot).clone()
+            };
+            h.state_mut().snapshot = Arc::new(next);
+            h.state_mut().actions.clear();
+            h.run();
+            lights
+        };
+        h.get_by_label("1. sun").click();
+        h.step();
+        assert!(solved(&mut h).is_empty());
+        assert_eq!(h.state().off.1, vec![sun]);
+        h.get_by_label("sun (off)").click();
+        h.step();
+        assert_eq!(solved(&mut h), vec![sun]);
+        assert!(h.state().off.1.is_empty());
     }
 }

@@ -116,6 +116,9 @@ pub struct PanelState {
     /// The solver panicked (the image is the last one it published).
     pub solver_failure: Option<String>,
     pub show_plot: bool,
+    /// Lights switched off in the Lights panel (kept to switch on again), and the scene
+    /// they belong to.
+    pub lights_off: (u64, Vec<nusselt_core::scene::Light>),
 }
 
 pub fn menu_bar(ui: &mut egui::Ui, state: &PanelState, actions: &mut Vec<Action>) {
@@ -201,7 +204,7 @@ pub fn side_panel(
             }
             ui.checkbox(&mut state.show_plot, "convergence plot");
             ui.separator();
-            crate::lights_panel::lights_section(ui, s, actions);
+            crate::lights_panel::lights_section(ui, &mut state.lights_off, s, actions);
             ui.separator();
             selection_section(ui, state, s, actions);
         } else {
