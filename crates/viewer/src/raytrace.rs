@@ -201,7 +201,7 @@ fn run(slot: &Slot, latest: &Latest<Arc<RayImage>>, waker: &Waker) {
             bvh: &bvh,
             texture: problem.element_texture(),
         };
-        let lights = DirectLight::new(&problem.scene, &problem.mesh, &problem.bvh, problem.epsilon);
+        let lights = DirectLight::new(&problem);
         let mut job = first;
         loop {
             let start = Instant::now();

@@ -17,9 +17,8 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::geometry::bvh::TriangleInput;
 use crate::geometry::sampling::{cosine_hemisphere, hash_seed, triangle_point};
-use crate::geometry::{Bvh, Ray, Rng, polygon};
+use crate::geometry::{Bvh, Ray, Rng};
 use crate::mesh::{Element, Mesh};
 use crate::scene::lights::{has_punctual, punctual_incident, sky_radiance};
 use crate::scene::{Light, Rgb, Scene, Surface};
@@ -36,6 +35,12 @@ pub struct GlassVisibility {
     transmittance: f64,
 }
 
+/// No windows: glass blocks as every face does.
+pub static NO_GLASS: GlassVisibility = GlassVisibility {
+    opaque: None,
+    transmittance: 0.0,
+};
+
 /// A thin pane's transmittance at normal incidence with its two surfaces' interreflections.
 pub fn slab_transmittance(ior: f64) -> f64 {
     let r = ((ior - 1.0) / (ior + 1.0)).powi(2);
@@ -45,28 +50,20 @@ pub fn slab_transmittance(ior: f64) -> f64 {
 impl GlassVisibility {
     /// The opaque faces of `scene` as `mesh` groups them; nothing if there is no glass.
     pub fn new(scene: &Scene, mesh: &Mesh) -> Self {
-        let glass = |m: usize| matches!(scene.materials[m].surface, Surface::Glass { .. });
         let Some(ior) = scene.materials.iter().find_map(|m| match m.surface {
             Surface::Glass { ior } => Some(ior),
             _ => None,
         }) else {
             return Self::default();
         };
-        let mut input = Vec::new();
-        for (i, f) in scene.faces.iter().enumerate() {
-            if glass(f.material.0 as usize) {
-                continue;
-            }
-            for t in polygon::triangulate(&f.vertices) {
-                input.push(TriangleInput {
-                    vertices: [f.vertices[t[0]], f.vertices[t[1]], f.vertices[t[2]]],
-                    id: mesh.face_occluder[i],
-                    cull_back: false,
-                });
-            }
-        }
+        let opaque = mesh.blocker_triangles_where(scene, |f| {
+            !matches!(
+                scene.materials[f.material.0 as usize].surface,
+                Surface::Glass { .. }
+            )
+        });
         Self {
-            opaque: Some(Bvh::build(&input)),
+            opaque: Some(Bvh::build(&opaque)),
             transmittance: slab_transmittance(ior),
         }
     }
@@ -121,35 +118,24 @@ impl ExternalLight {
         (self.sky_fraction.is_empty() || self.sky_radiance == Rgb::ZERO) && self.punctual.is_empty()
     }
 
-    /// Computes both parts for every element of `mesh`; `bvh` is the solve's blocker BVH
-    /// (ids: occluder groups), `epsilon` the offset of ray origins.
-    pub fn compute(lights: &[Light], scene: &Scene, mesh: &Mesh, bvh: &Bvh, epsilon: f64) -> Self {
-        let mut light = Self::default();
-        light.update(lights, scene, mesh, bvh, epsilon);
-        light
-    }
-
     /// Recomputes for new `lights` on the same mesh: the sky fractions only the first time
-    /// a sky is on, the suns and points every time (a few shadow rays per element).
+    /// a sky is on, the suns and points every time (a few shadow rays per element). `bvh`
+    /// is the solve's blocker BVH (ids: occluder groups), `glass` its windows, `epsilon`
+    /// the offset of ray origins.
     pub fn update(
         &mut self,
         lights: &[Light],
-        scene: &Scene,
+        glass: &GlassVisibility,
         mesh: &Mesh,
         bvh: &Bvh,
         epsilon: f64,
     ) {
         let n = mesh.elements.len();
-        let glass = if lights.iter().any(Light::is_on) {
-            GlassVisibility::new(scene, mesh)
-        } else {
-            GlassVisibility::default()
-        };
         let at = |k: usize| Probe {
             element: &mesh.elements[k],
             own: mesh.patch(mesh.elements[k].patch).occluder,
             bvh,
-            glass: &glass,
+            glass,
             epsilon,
             seed: hash_seed(&[k as u64, 0x11647]),
         };

@@ -315,8 +315,17 @@ impl Mesh {
     /// small as the model (38 triangles for the Cornell box instead of one or two per
     /// patch).
     pub fn blocker_triangles(&self, scene: &Scene) -> Vec<TriangleInput> {
+        self.blocker_triangles_where(scene, |_| true)
+    }
+
+    /// [`Mesh::blocker_triangles`] of the faces `keep` accepts.
+    pub fn blocker_triangles_where(
+        &self,
+        scene: &Scene,
+        keep: impl Fn(&crate::scene::Face) -> bool,
+    ) -> Vec<TriangleInput> {
         let mut out = Vec::new();
-        for (i, f) in scene.faces.iter().enumerate() {
+        for (i, f) in scene.faces.iter().enumerate().filter(|(_, f)| keep(f)) {
             let v = &f.vertices;
             for t in polygon::triangulate(v) {
                 out.push(TriangleInput {

@@ -26,8 +26,8 @@ use crate::formfactor::{self, FormFactorMethod, RowContext, exact};
 use crate::geometry::sampling::triangle_point;
 use crate::geometry::shaft::Shaft;
 use crate::geometry::{Bvh, Ray, Rng, polygon};
-use crate::mesh::{Mesh, PatchId};
-use crate::scene::{Rgb, Scene};
+use crate::mesh::PatchId;
+use crate::scene::Rgb;
 
 use super::{Image, RenderSettings, SolutionView};
 
@@ -59,16 +59,17 @@ pub struct DirectLight<'a> {
     /// The scene's suns and point lights, evaluated per pixel with one shadow ray each.
     punctual: Vec<crate::scene::Light>,
     /// Their light through windows, as the solve sees it.
-    glass: crate::formfactor::lights::GlassVisibility,
+    glass: &'a crate::formfactor::lights::GlassVisibility,
     /// The solver's blocker BVH (ids: occluder groups).
     blockers: &'a Bvh,
     epsilon: f64,
 }
 
 impl<'a> DirectLight<'a> {
-    /// The emitting faces of `scene`; `blockers` is the solve's BVH
-    /// ([`crate::solver::Problem::bvh`]), whose ids are `mesh.face_occluder`.
-    pub fn new(scene: &Scene, mesh: &'a Mesh, blockers: &'a Bvh, epsilon: f64) -> Self {
+    /// The emitting faces, suns and points of `problem`'s scene, seen through the solve's
+    /// BVH ([`crate::solver::Problem::bvh`], ids `mesh.face_occluder`) and windows.
+    pub fn new(problem: &'a crate::solver::Problem) -> Self {
+        let (scene, mesh) = (&problem.scene, &problem.mesh);
         let lights = scene
             .faces
             .iter()
@@ -102,23 +103,18 @@ impl<'a> DirectLight<'a> {
                 })
             })
             .collect();
-        let punctual: Vec<crate::scene::Light> = scene
-            .lights
-            .iter()
-            .filter(|l| !matches!(l, crate::scene::Light::Sky { .. }))
-            .copied()
-            .collect();
+        let punctual = crate::scene::lights::punctual(&scene.lights);
         let glass = if punctual.is_empty() {
-            crate::formfactor::lights::GlassVisibility::default()
+            &crate::formfactor::lights::NO_GLASS
         } else {
-            crate::formfactor::lights::GlassVisibility::new(scene, mesh)
+            problem.glass()
         };
         Self {
             lights,
             punctual,
             glass,
-            blockers,
-            epsilon,
+            blockers: &problem.bvh,
+            epsilon: problem.epsilon,
         }
     }
 
@@ -279,7 +275,7 @@ impl<'a> Prepared<'a> {
             problem,
             vertex: indirect_vertex_radiance(problem, radiance),
             bvh: super::display_bvh(&problem.scene, &problem.mesh),
-            lights: DirectLight::new(&problem.scene, &problem.mesh, &problem.bvh, problem.epsilon),
+            lights: DirectLight::new(problem),
         }
     }
 

@@ -44,7 +44,7 @@ pub fn render_solution(
         bvh: &bvh,
         texture: problem.element_texture(),
     };
-    let lights = DirectLight::new(&problem.scene, &problem.mesh, &problem.bvh, problem.epsilon);
+    let lights = DirectLight::new(problem);
     let per_sample = (rays_per_pixel / settings.spp.max(1)).max(1);
     // No edge samples: a few gather rays per sample make every pixel's samples disagree,
     // and the contrast test would send each pixel `edge_spp` more.

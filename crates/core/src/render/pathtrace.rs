@@ -102,12 +102,7 @@ impl<'a> PathTracer<'a> {
             lights,
             light_cdf,
             epsilon,
-            punctual: scene
-                .lights
-                .iter()
-                .filter(|l| !matches!(l, crate::scene::Light::Sky { .. }))
-                .copied()
-                .collect(),
+            punctual: crate::scene::lights::punctual(&scene.lights),
             sky: crate::scene::lights::sky_radiance(&scene.lights),
             caustics: true,
         }

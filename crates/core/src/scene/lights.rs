@@ -211,6 +211,15 @@ pub fn has_punctual(lights: &[Light]) -> bool {
         .any(|l| matches!(l, Light::Sun { .. } | Light::Point { .. }) && l.is_on())
 }
 
+/// The suns and point lights of `lights` (what [`punctual_incident`] evaluates).
+pub fn punctual(lights: &[Light]) -> Vec<Light> {
+    lights
+        .iter()
+        .filter(|l| !matches!(l, Light::Sky { .. }))
+        .copied()
+        .collect()
+}
+
 /// A direction in the cone of half-angle `radius` about unit `axis`, uniform in solid angle.
 pub fn cone_direction(axis: DVec3, radius: f64, u1: f64, u2: f64) -> DVec3 {
     if radius <= 0.0 {

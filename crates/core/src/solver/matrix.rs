@@ -215,6 +215,20 @@ impl<I: Iteration> MatrixSolver<I> {
     pub fn iteration(&self) -> &I {
         &self.iteration
     }
+
+    /// After an edit of materials or lights: the reflectances, the emitted power and the
+    /// residual anew; the iteration continues from the current solution.
+    fn sources_changed(&mut self) {
+        self.element_rho = self.problem.element_reflectance();
+        self.emitted = self.problem.emitted_power().max(f64::MIN_POSITIVE);
+        self.iteration.restart();
+        self.stalled = false;
+        if self.matrix.complete(&self.problem) {
+            self.residual = self
+                .matrix
+                .residual(&self.problem, &self.patch_b, self.emitted);
+        }
+    }
 }
 
 impl<I: Iteration> Solver for MatrixSolver<I> {
@@ -275,28 +289,13 @@ impl<I: Iteration> Solver for MatrixSolver<I> {
     ) -> Result<(), SolverError> {
         self.problem
             .set_material(id.0 as usize, reflectance, emission)?;
-        self.element_rho = self.problem.element_reflectance();
-        self.emitted = self.problem.emitted_power().max(f64::MIN_POSITIVE);
-        self.iteration.restart();
-        self.stalled = false;
-        if self.matrix.complete(&self.problem) {
-            self.residual = self
-                .matrix
-                .residual(&self.problem, &self.patch_b, self.emitted);
-        }
+        self.sources_changed();
         Ok(())
     }
     /// Continues from the current solution with the new sources.
     fn set_lights(&mut self, lights: Vec<crate::scene::Light>) {
         self.problem.set_lights(lights);
-        self.emitted = self.problem.emitted_power().max(f64::MIN_POSITIVE);
-        self.iteration.restart();
-        self.stalled = false;
-        if self.matrix.complete(&self.problem) {
-            self.residual = self
-                .matrix
-                .residual(&self.problem, &self.patch_b, self.emitted);
-        }
+        self.sources_changed();
     }
     fn reset(&mut self) {
         let p = &self.problem;

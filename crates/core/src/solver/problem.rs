@@ -4,7 +4,7 @@
 use std::sync::Arc;
 
 use crate::formfactor::hemicube::ItemBufferRaster;
-use crate::formfactor::lights::ExternalLight;
+use crate::formfactor::lights::{ExternalLight, GlassVisibility, NO_GLASS};
 use crate::formfactor::{FormFactorMethod, RowContext};
 use crate::geometry::Bvh;
 use crate::mesh::{self, Mesh, PatchId};
@@ -22,6 +22,8 @@ pub struct Problem {
     pub epsilon: f64,
     /// What the sky, suns and point lights give each element (irradiance over π).
     pub external: ExternalLight,
+    /// The windows of skies, suns and points (built when first asked for).
+    glass: std::sync::OnceLock<GlassVisibility>,
     /// The same, area-averaged over each patch.
     patch_external: Vec<Rgb>,
     /// Per element, the mean colour of its material's diffuse texture over the element
@@ -73,6 +75,7 @@ impl Problem {
             bvh,
             epsilon,
             external: ExternalLight::default(),
+            glass: std::sync::OnceLock::new(),
             patch_external: Vec::new(),
             element_texture: Vec::new(),
             patch_texture: Vec::new(),
@@ -155,9 +158,15 @@ impl Problem {
         if self.external.sky_fraction.len() != self.mesh.elements.len() {
             self.external = ExternalLight::default();
         }
+        let glass = if self.scene.lights.iter().any(Light::is_on) {
+            self.glass
+                .get_or_init(|| GlassVisibility::new(&self.scene, &self.mesh))
+        } else {
+            &NO_GLASS
+        };
         self.external.update(
             &self.scene.lights,
-            &self.scene,
+            glass,
             &self.mesh,
             &self.bvh,
             self.epsilon,
@@ -170,6 +179,13 @@ impl Problem {
                 .collect();
             self.patch_means(&at)
         };
+    }
+
+    /// The windows of skies, suns and points on this mesh
+    /// ([`GlassVisibility`], built on first use).
+    pub fn glass(&self) -> &GlassVisibility {
+        self.glass
+            .get_or_init(|| GlassVisibility::new(&self.scene, &self.mesh))
     }
 
     /// Replaces the lights that are not faces and recomputes what they give.
@@ -211,6 +227,7 @@ impl Problem {
         self.mesh = mesh;
         self.config.element_size = Some(element_size);
         self.external = ExternalLight::default();
+        self.glass = std::sync::OnceLock::new();
         self.texture_elements();
         self.light_elements();
         Ok(())
@@ -230,11 +247,8 @@ impl Problem {
 
     /// Reflectance of each patch's material.
     pub fn patch_reflectance(&self) -> Vec<Rgb> {
-        self.mesh
-            .patches
-            .iter()
-            .enumerate()
-            .map(|(k, _)| self.patch_rho(k))
+        (0..self.mesh.patches.len())
+            .map(|k| self.patch_rho(k))
             .collect()
     }
 
@@ -247,11 +261,8 @@ impl Problem {
 
     /// Reflectance of each element's material.
     pub fn element_reflectance(&self) -> Vec<Rgb> {
-        self.mesh
-            .elements
-            .iter()
-            .enumerate()
-            .map(|(k, _)| self.element_rho(k))
+        (0..self.mesh.elements.len())
+            .map(|k| self.element_rho(k))
             .collect()
     }
 

@@ -362,37 +362,30 @@ impl ProgressiveSolver {
         self.problem
             .set_material(id.0 as usize, reflectance, emission)?;
         self.element_rho = self.problem.element_reflectance();
-        let mesh = &self.problem.mesh;
-        let mut gained = vec![Rgb::ZERO; mesh.patches.len()];
-        for (j, e) in mesh.elements.iter().enumerate() {
-            let p = &mesh.patches[e.patch.0 as usize];
-            if p.material != id {
-                continue;
-            }
-            let new =
-                emission + self.element_rho[j] * (self.incident[j] + self.problem.external.at(j));
-            gained[e.patch.0 as usize] += (new - self.radiosity[j]) * e.area;
-            self.radiosity[j] = new;
-        }
-        for ((u, g), p) in self.unshot.iter_mut().zip(&gained).zip(&mesh.patches) {
-            *u += *g / p.area;
-        }
-        self.emitted_power = self.problem.emitted_power().max(f64::MIN_POSITIVE);
+        self.refresh_sources(Some(id));
         Ok(())
     }
 
     /// Replaces the sky, suns and point lights; the change in what each element receives
     /// becomes unshot radiance, so shooting continues from the current state.
     pub fn set_lights(&mut self, lights: Vec<crate::scene::Light>) {
-        let n = self.problem.mesh.elements.len();
-        let old: Vec<Rgb> = (0..n).map(|e| self.problem.element_source(e)).collect();
         self.problem.set_lights(lights);
+        self.refresh_sources(None);
+    }
+
+    /// After a change of sources or reflectances, the radiosity `B_j = S_j + ρ_j H_j` of the
+    /// elements of material `only` (all: `None`) from what they have received so far; the
+    /// difference becomes their patches' unshot radiance.
+    fn refresh_sources(&mut self, only: Option<MaterialId>) {
         let mesh = &self.problem.mesh;
         let mut gained = vec![Rgb::ZERO; mesh.patches.len()];
         for (j, e) in mesh.elements.iter().enumerate() {
-            let change = self.problem.element_source(j) - old[j];
-            self.radiosity[j] += change;
-            gained[e.patch.0 as usize] += change * e.area;
+            if only.is_some_and(|id| mesh.patches[e.patch.0 as usize].material != id) {
+                continue;
+            }
+            let new = self.problem.element_source(j) + self.element_rho[j] * self.incident[j];
+            gained[e.patch.0 as usize] += (new - self.radiosity[j]) * e.area;
+            self.radiosity[j] = new;
         }
         for ((u, g), p) in self.unshot.iter_mut().zip(&gained).zip(&mesh.patches) {
             *u += *g / p.area;

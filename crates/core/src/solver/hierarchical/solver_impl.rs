@@ -59,20 +59,13 @@ impl Solver for HierarchicalSolver {
     ) -> Result<(), SolverError> {
         self.problem
             .set_material(id.0 as usize, reflectance, emission)?;
-        self.emission = self.problem.patch_emission();
-        self.reflectance = self.problem.patch_reflectance();
-        self.emitted = self.problem.emitted_power();
-        self.residual = if self.emitted > 0.0 { 1.0 } else { 0.0 };
-        self.residual_at_refine = f64::INFINITY;
+        self.sources_changed();
         Ok(())
     }
     /// Keeps the links and continues from the current solution.
     fn set_lights(&mut self, lights: Vec<crate::scene::Light>) {
         self.problem.set_lights(lights);
-        self.emission = self.problem.patch_emission();
-        self.emitted = self.problem.emitted_power();
-        self.residual = if self.emitted > 0.0 { 1.0 } else { 0.0 };
-        self.residual_at_refine = f64::INFINITY;
+        self.sources_changed();
     }
     /// Back to the emission alone; the links are kept.
     fn reset(&mut self) {
@@ -139,5 +132,17 @@ impl Solver for HierarchicalSolver {
     }
     fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
         (self.problem, RowCache::default())
+    }
+}
+
+impl HierarchicalSolver {
+    /// After an edit of materials or lights: the patches' sources and reflectances anew,
+    /// the residual unknown until the next iteration (links kept).
+    fn sources_changed(&mut self) {
+        self.emission = self.problem.patch_emission();
+        self.reflectance = self.problem.patch_reflectance();
+        self.emitted = self.problem.emitted_power();
+        self.residual = if self.emitted > 0.0 { 1.0 } else { 0.0 };
+        self.residual_at_refine = f64::INFINITY;
     }
 }
