@@ -190,10 +190,9 @@ fn rel_l2(a: &[[f32; 3]], b: &[[f32; 3]], g: &nusselt_viewer::snapshot::Geometry
     (num / den).sqrt()
 }
 
-#[test]
-fn an_edit_while_running_converges_to_a_fresh_solve() {
-    let stop = 1e-7;
-    let (mut h, _) = spawn(
+/// A solver thread shooting the coarse Cornell box until `stop` unshot.
+fn spawn_shooting(stop: f64) -> SolverHandle {
+    let (h, _) = spawn(
         cornell(),
         ThreadConfig {
             solver: coarse_config(),
@@ -204,6 +203,33 @@ fn an_edit_while_running_converges_to_a_fresh_solve() {
             kind: SolverKind::Shooting,
         },
     );
+    h
+}
+
+/// `scene` solved afresh to `stop`, and the relative L2 distance of `converged`'s radiance
+/// from it.
+fn against_fresh_solve(converged: &Snapshot, scene: Scene, stop: f64) -> (f64, ProgressiveSolver) {
+    let mut fresh = ProgressiveSolver::new(scene, coarse_config()).expect("solver");
+    let never = std::sync::atomic::AtomicBool::new(false);
+    fresh.run(
+        &StopCriteria {
+            unshot: stop,
+            ..Default::default()
+        },
+        &never,
+        &mut |_| {},
+    );
+    let fresh_corners = converged
+        .geometry
+        .expand(&fresh.mesh().vertex_values(&fresh.element_radiance(false)));
+    let rel = rel_l2(&converged.radiance, &fresh_corners, &converged.geometry);
+    (rel, fresh)
+}
+
+#[test]
+fn an_edit_while_running_converges_to_a_fresh_solve() {
+    let stop = 1e-7;
+    let mut h = spawn_shooting(stop);
     let deadline = Instant::now() + Duration::from_secs(240);
     let red = cornell()
         .materials
@@ -253,20 +279,7 @@ fn an_edit_while_running_converges_to_a_fresh_solve() {
     let mut scene = cornell();
     scene.materials[red.0 as usize].reflectance = rho.into();
     scene.materials[red.0 as usize].emission = ke.into();
-    let mut fresh = ProgressiveSolver::new(scene, coarse_config()).expect("solver");
-    let never = std::sync::atomic::AtomicBool::new(false);
-    fresh.run(
-        &StopCriteria {
-            unshot: stop,
-            ..Default::default()
-        },
-        &never,
-        &mut |_| {},
-    );
-    let fresh_corners = converged
-        .geometry
-        .expand(&fresh.mesh().vertex_values(&fresh.element_radiance(false)));
-    let rel = rel_l2(&converged.radiance, &fresh_corners, &converged.geometry);
+    let (rel, _) = against_fresh_solve(&converged, scene, stop);
     eprintln!(
         "edit at shot {before_edit}, converged after {} shots; edited vs fresh: {rel:.2e}",
         converged.stats.steps
@@ -488,17 +501,7 @@ fn a_sun_added_while_running_converges_to_a_fresh_solve() {
         irradiance: glam::DVec3::splat(20.0),
         angular_radius: 0.0,
     };
-    let (mut h, _) = spawn(
-        cornell(),
-        ThreadConfig {
-            solver: coarse_config(),
-            play: true,
-            stop_unshot: stop,
-            max_shots: None,
-            shot_threads: None,
-            kind: SolverKind::Shooting,
-        },
-    );
+    let mut h = spawn_shooting(stop);
     let deadline = Instant::now() + Duration::from_secs(240);
     let before = first_snapshot(&h, deadline, |s| s.stats.steps >= 20);
     send(&h, Command::SetLights(vec![sun]), deadline);
@@ -514,23 +517,10 @@ fn a_sun_added_while_running_converges_to_a_fresh_solve() {
 
     let mut scene = cornell();
     scene.lights.push(sun);
-    let mut fresh = ProgressiveSolver::new(scene, coarse_config()).expect("solver");
-    let never = std::sync::atomic::AtomicBool::new(false);
-    fresh.run(
-        &StopCriteria {
-            unshot: stop,
-            ..Default::default()
-        },
-        &never,
-        &mut |_| {},
-    );
+    let (rel, fresh) = against_fresh_solve(&converged, scene, stop);
     assert!(
         fresh.problem().external.punctual.iter().any(|h| h.x > 0.0),
         "the sun reaches into the box"
     );
-    let fresh_corners = converged
-        .geometry
-        .expand(&fresh.mesh().vertex_values(&fresh.element_radiance(false)));
-    let rel = rel_l2(&converged.radiance, &fresh_corners, &converged.geometry);
     assert!(rel < 5e-3, "sun added vs fresh solve differ by {rel}");
 }

@@ -141,7 +141,7 @@ impl SceneArgs {
             two_sided: self.two_sided,
             rho: self.rho,
         };
-        let scene = match (&self.scene, &self.builtin) {
+        let mut scene = match (&self.scene, &self.builtin) {
             (Some(path), None) if is_scene_file(path) => {
                 let mut scene = SceneFile::read(path)?.load(path)?;
                 scene.two_sided |= self.two_sided;
@@ -158,7 +158,6 @@ impl SceneArgs {
         for w in &scene.warnings {
             eprintln!("warning: {w}");
         }
-        let mut scene = scene;
         scene.lights.extend(lights);
         for (corners, radiance) in areas {
             scene.add_area_light(corners, radiance);

@@ -281,20 +281,7 @@ impl ViewportResources {
             mipmap_filter: wgpu::MipmapFilterMode::Linear,
             ..Default::default()
         });
-        let placeholder = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("nusselt no diffuse maps"),
-            size: wgpu::Extent3d {
-                width: 1,
-                height: 1,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: TEXTURE_FORMAT,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
+        let placeholder = placeholder_texture(device);
         let bind_group = Self::bind_group(
             device,
             &bind_group_layout,
@@ -368,20 +355,7 @@ impl ViewportResources {
         self.textures = layers.cloned();
         let Some(t) = layers else {
             // Back to the placeholder: the old array is dropped with its bind group.
-            let placeholder = device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("nusselt no diffuse maps"),
-                size: wgpu::Extent3d {
-                    width: 1,
-                    height: 1,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: TEXTURE_FORMAT,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING,
-                view_formats: &[],
-            });
+            let placeholder = placeholder_texture(device);
             self.bind_group = Self::bind_group(
                 device,
                 &self.bind_group_layout,
@@ -621,4 +595,23 @@ impl egui_wgpu::CallbackTrait for ViewportCallback {
             r.paint(pass, self.overlays);
         }
     }
+}
+
+/// The 1 × 1 texture bound while the scene has no diffuse maps (every vertex then has layer
+/// 0, whose texel the shader does not show).
+fn placeholder_texture(device: &wgpu::Device) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("nusselt no diffuse maps"),
+        size: wgpu::Extent3d {
+            width: 1,
+            height: 1,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: TEXTURE_FORMAT,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    })
 }

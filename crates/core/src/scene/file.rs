@@ -375,27 +375,17 @@ mod tests {
         std::fs::write(&path, "{\n \"builtin\": \"cornell\",\n \"lihgts\": []\n}").unwrap();
         let e = SceneFile::read(&path).unwrap_err().to_string();
         assert!(e.contains("bad.json:3") && e.contains("lihgts"), "{e}");
-        std::fs::write(
-            &path,
+        // Well-formed files whose values the loader refuses.
+        let refused = |text: &str| {
+            std::fs::write(&path, text).unwrap();
+            let file = SceneFile::read(&path).unwrap();
+            file.load(&path).unwrap_err().to_string()
+        };
+        let e = refused(
             "{\"builtin\": \"cornell\", \"lights\": [{\"type\": \"sun\", \"direction\": [0,0,0], \"irradiance\": [1,1,1]}]}",
-        )
-        .unwrap();
-        let e = SceneFile::read(&path)
-            .unwrap()
-            .load(&path)
-            .unwrap_err()
-            .to_string();
+        );
         assert!(e.contains("lights[0].direction"), "{e}");
-        std::fs::write(
-            &path,
-            "{\"builtin\": \"cornell\", \"materials\": {\"nope\": {}}}",
-        )
-        .unwrap();
-        let e = SceneFile::read(&path)
-            .unwrap()
-            .load(&path)
-            .unwrap_err()
-            .to_string();
+        let e = refused("{\"builtin\": \"cornell\", \"materials\": {\"nope\": {}}}");
         assert!(e.contains("materials.nope"), "{e}");
     }
 }
