@@ -260,6 +260,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     }
     args.method_args.check()?;
     let scene = args.scene.load()?;
+    let load_seconds = process_start.elapsed().as_secs_f64();
     if args.edge_spp > super::MAX_SPP {
         bail!(
             "--edge-spp must be at most {}, got {}",
@@ -379,6 +380,12 @@ fn render(args: &RenderArgs) -> Result<()> {
     let radiance = solver.element_radiance(!args.no_ambient);
     let (steps, residual, name) = (solver.steps(), solver.residual(), solver.name());
     let (report, matrix_bytes) = (solver.report(), solver.matrix_bytes());
+    let setup: serde_json::Map<String, serde_json::Value> = solver
+        .problem()
+        .setup_seconds
+        .iter()
+        .map(|(k, v)| (k.to_string(), serde_json::json!(v)))
+        .collect();
     let (problem, rows) = solver.into_parts();
     drop(rows);
 
@@ -436,6 +443,8 @@ fn render(args: &RenderArgs) -> Result<()> {
         "solver": name,
         "solver_report": report,
         "matrix_bytes": matrix_bytes,
+        "load_seconds": load_seconds,
+        "setup_seconds": setup,
         "solve_seconds": solve_seconds,
         "pass": chosen.pass.name(),
         "pass_estimate_seconds": chosen.estimate,

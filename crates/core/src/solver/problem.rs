@@ -12,6 +12,27 @@ use crate::scene::{Light, Material, Rgb, Scene};
 
 use super::{SolverConfig, SolverError, check_power};
 
+/// Wall-clock seconds between named points of a setup.
+struct PhaseClock {
+    last: std::time::Instant,
+    laps: Vec<(&'static str, f64)>,
+}
+
+impl PhaseClock {
+    fn start() -> Self {
+        Self {
+            last: std::time::Instant::now(),
+            laps: Vec::new(),
+        }
+    }
+
+    fn lap(&mut self, name: &'static str) {
+        let now = std::time::Instant::now();
+        self.laps.push((name, (now - self.last).as_secs_f64()));
+        self.last = now;
+    }
+}
+
 /// A scene meshed for solving (see the module docs of [`crate::solver`]).
 pub struct Problem {
     pub scene: Scene,
@@ -31,6 +52,8 @@ pub struct Problem {
     element_texture: Vec<Rgb>,
     /// The same, area-averaged over each patch.
     patch_texture: Vec<Rgb>,
+    /// Wall-clock seconds of each setup phase (meshing, BVH, textures, lights), in order.
+    pub setup_seconds: Vec<(&'static str, f64)>,
 }
 
 impl Problem {
@@ -41,6 +64,7 @@ impl Problem {
         if config.method == FormFactorMethod::GpuHemicube && config.raster.is_none() {
             return Err(SolverError::NoRaster);
         }
+        let start = std::time::Instant::now();
         let mesh = match config.element_size {
             Some(size) => {
                 let patch = config
@@ -60,13 +84,18 @@ impl Problem {
                 config.discontinuity,
             )?,
         };
-        Self::with_mesh(scene, config, mesh)
+        let meshing = start.elapsed().as_secs_f64();
+        let mut problem = Self::with_mesh(scene, config, mesh)?;
+        problem.setup_seconds.insert(0, ("mesh", meshing));
+        Ok(problem)
     }
 
     /// A problem on a mesh already built for `scene`.
     pub fn with_mesh(scene: Scene, config: SolverConfig, mesh: Mesh) -> Result<Self, SolverError> {
         check_power(&scene.materials, &mesh)?;
+        let mut clock = PhaseClock::start();
         let bvh = Bvh::build(&mesh.blocker_triangles(&scene));
+        clock.lap("bvh");
         let epsilon = 1e-6 * mesh.bounds().diagonal().max(1e-12);
         let mut problem = Self {
             scene,
@@ -79,9 +108,13 @@ impl Problem {
             patch_external: Vec::new(),
             element_texture: Vec::new(),
             patch_texture: Vec::new(),
+            setup_seconds: Vec::new(),
         };
         problem.texture_elements();
+        clock.lap("textures");
         problem.light_elements();
+        clock.lap("lights");
+        problem.setup_seconds = clock.laps;
         Ok(problem)
     }
 
