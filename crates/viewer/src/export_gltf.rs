@@ -26,7 +26,8 @@ fn normals(s: &Snapshot) -> (Vec<Option<DVec3>>, Vec<DVec3>) {
     let mut sum = vec![(DVec3::ZERO, 0.0); n];
     let mut own = Vec::with_capacity(g.indices.len() / 3);
     for t in g.indices.chunks_exact(3) {
-        let p = t.map(|d| DVec3::from_array(g.positions[d as usize].map(f64::from)));
+        let p: [DVec3; 3] =
+            std::array::from_fn(|k| DVec3::from_array(g.positions[t[k] as usize].map(f64::from)));
         let cross = (p[1] - p[0]).cross(p[2] - p[0]);
         let unit = cross.try_normalize().unwrap_or(DVec3::Z);
         own.push(unit);

@@ -122,8 +122,8 @@ impl Bin {
                     hi[c] = hi[c].max(v[c]);
                 }
             }
-            a["min"] = json!(lo.map(f64::from));
-            a["max"] = json!(hi.map(f64::from));
+            a["min"] = json!(lo.iter().map(|&x| f64::from(x)).collect::<Vec<_>>());
+            a["max"] = json!(hi.iter().map(|&x| f64::from(x)).collect::<Vec<_>>());
         }
         self.accessors.push(a);
         self.accessors.len() - 1
