@@ -59,7 +59,10 @@ fn validate(path: &Path) -> String {
         .lines()
         .find_map(|l| l.strip_prefix("RESULT "))
         .unwrap_or_else(|| panic!("no RESULT line from the validator: {text}{err}"));
-    assert!(result.starts_with("errors=0 "), "validator: {result}\n{text}");
+    assert!(
+        result.starts_with("errors=0 "),
+        "validator: {result}\n{text}"
+    );
     text
 }
 
@@ -103,7 +106,10 @@ fn check_values(prims: &[Prim], exposure: f64) {
                 let b = f64::from(radiance[k][c]);
                 let want = (b * exposure).clamp(0.0, 1.0);
                 let got = f64::from(colour[k][c]);
-                assert!((got - want).abs() <= 1.0 / 255.0, "{name} {k}: {got} vs {want}");
+                assert!(
+                    (got - want).abs() <= 1.0 / 255.0,
+                    "{name} {k}: {got} vs {want}"
+                );
                 let identity = ke[c] + kd[c] * f64::from(irradiance[k][c]) / std::f64::consts::PI;
                 assert!(
                     (identity - b).abs() <= 1e-4 * b.max(1.0),
@@ -128,7 +134,8 @@ fn corner_factor(a: f64, b: f64, c: f64) -> f64 {
 /// read from the wrong surface, falls outside [0.95, 1.6] × direct.
 fn check_block_top(prims: &[Prim]) {
     let (x0, z0, c) = (368.5, 351.25, 548.8 - 330.0);
-    let f = corner_factor(343.0 - x0, 332.0 - z0, c) - corner_factor(213.0 - x0, 332.0 - z0, c)
+    let f = corner_factor(343.0 - x0, 332.0 - z0, c)
+        - corner_factor(213.0 - x0, 332.0 - z0, c)
         - corner_factor(343.0 - x0, 227.0 - z0, c)
         + corner_factor(213.0 - x0, 227.0 - z0, c);
     let (_, ke) = cornell_materials()["light"];
@@ -146,7 +153,9 @@ fn check_block_top(prims: &[Prim]) {
         }
     }
     let (d, e) = best.expect("a vertex on the tall block's top");
-    eprintln!("tall block top: irradiance {e:.4} W/m² (red), direct {direct:.4}, {d:.1} mm from the centre");
+    eprintln!(
+        "tall block top: irradiance {e:.4} W/m² (red), direct {direct:.4}, {d:.1} mm from the centre"
+    );
     assert!(d < 30.0, "nearest vertex {d} mm away");
     assert!(
         e > 0.95 * direct && e < 1.6 * direct,
@@ -171,8 +180,25 @@ fn cornell_export_validates_and_holds_the_solution() {
     let png = dir.path().join("cornell.png");
     let (p, g) = (png.to_str().expect("utf-8"), glb.to_str().expect("utf-8"));
     let (_, stderr) = nusselt(&[
-        "render", "--builtin", "cornell", "--seconds", "5", "--width", "32", "--height", "32",
-        "--spp", "1", "--pass", "vertex", "--exposure", "1.5", "--out", p, "--export-gltf", g,
+        "render",
+        "--builtin",
+        "cornell",
+        "--seconds",
+        "5",
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "--spp",
+        "1",
+        "--pass",
+        "vertex",
+        "--exposure",
+        "1.5",
+        "--out",
+        p,
+        "--export-gltf",
+        g,
     ]);
     let line = stderr
         .lines()
@@ -191,7 +217,10 @@ fn cornell_export_validates_and_holds_the_solution() {
     assert_eq!(number("triangles"), triangles);
     let vertices: usize = prims.iter().map(|p| p.1.len()).sum();
     assert_eq!(number("vertices"), vertices);
-    assert!(vertices < triangles * 3 / 2, "welded: {vertices} vertices for {triangles} triangles");
+    assert!(
+        vertices < triangles * 3 / 2,
+        "welded: {vertices} vertices for {triangles} triangles"
+    );
     let names: Vec<&str> = prims.iter().map(|p| p.0.as_str()).collect();
     assert_eq!(names.len(), 4, "one primitive per material: {names:?}");
     check_values(&prims, 1.5);
@@ -205,9 +234,26 @@ fn gltf_json_export_validates() {
     let out = dir.path().join("c.gltf");
     let png = dir.path().join("c.png");
     nusselt(&[
-        "render", "--builtin", "cornell", "--element-size", "60", "--shots", "40", "--width", "16",
-        "--height", "16", "--spp", "1", "--pass", "vertex", "--quiet",
-        "--out", png.to_str().expect("utf-8"), "--export-gltf", out.to_str().expect("utf-8"),
+        "render",
+        "--builtin",
+        "cornell",
+        "--element-size",
+        "60",
+        "--shots",
+        "40",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--spp",
+        "1",
+        "--pass",
+        "vertex",
+        "--quiet",
+        "--out",
+        png.to_str().expect("utf-8"),
+        "--export-gltf",
+        out.to_str().expect("utf-8"),
     ]);
     let text = std::fs::read_to_string(&out).expect("JSON text");
     assert!(text.contains("data:application/octet-stream;base64,"));
@@ -227,14 +273,24 @@ fn a_bad_export_path_fails_before_any_work() {
     ] {
         let start = Instant::now();
         let out = Command::new(env!("CARGO_BIN_EXE_nusselt"))
-            .args(["render", "--builtin", "cornell", "--out", png, "--export-gltf"])
+            .args([
+                "render",
+                "--builtin",
+                "cornell",
+                "--out",
+                png,
+                "--export-gltf",
+            ])
             .arg(&path)
             .output()
             .expect("run nusselt");
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success());
         assert!(stderr.contains(message), "{path:?}: {stderr}");
-        assert!(start.elapsed() < Duration::from_secs(20), "refused before the solve");
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "refused before the solve"
+        );
     }
 }
 

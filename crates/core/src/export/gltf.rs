@@ -111,7 +111,11 @@ impl Bin {
 
     /// A FLOAT accessor of `N`-vectors (`kind`: VEC2, VEC3), with min/max when `bounds`.
     fn floats<const N: usize>(&mut self, values: &[[f32; N]], kind: &str, bounds: bool) -> usize {
-        let bytes: Vec<u8> = values.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        let bytes: Vec<u8> = values
+            .iter()
+            .flatten()
+            .flat_map(|x| x.to_le_bytes())
+            .collect();
         let view = self.view(&bytes, Some(ARRAY_BUFFER));
         let mut a = json!({"bufferView": view, "componentType": FLOAT, "count": values.len(), "type": kind});
         if bounds {
@@ -232,7 +236,8 @@ fn material_pair(input: &GltfInput, m: u32, texture: Option<usize>) -> [Value; 2
 /// The vertex attributes of one primitive.
 fn attributes(input: &GltfInput, p: &Primitive, uv: bool, bin: &mut Bin) -> Value {
     let mesh = input.mesh;
-    let pick = |a: &[[f32; 3]]| -> Vec<[f32; 3]> { p.source.iter().map(|&v| a[v as usize]).collect() };
+    let pick =
+        |a: &[[f32; 3]]| -> Vec<[f32; 3]> { p.source.iter().map(|&v| a[v as usize]).collect() };
     let exposure = input.exposure as f32;
     let colour: Vec<[f32; 3]> = p
         .source
@@ -328,7 +333,11 @@ fn base64(data: &[u8]) -> String {
     const ABC: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let mut s = String::with_capacity(data.len().div_ceil(3) * 4);
     for chunk in data.chunks(3) {
-        let b = [chunk[0], *chunk.get(1).unwrap_or(&0), *chunk.get(2).unwrap_or(&0)];
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
         let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
         for k in 0..4 {
             if k <= chunk.len() {
@@ -343,7 +352,10 @@ fn base64(data: &[u8]) -> String {
 
 /// A GLB container: header, JSON chunk (padded with spaces), BIN chunk (padded with zeros).
 fn glb(json: &[u8], bin: &[u8]) -> Result<Vec<u8>, ExportError> {
-    let (jl, bl) = (json.len().next_multiple_of(4), bin.len().next_multiple_of(4));
+    let (jl, bl) = (
+        json.len().next_multiple_of(4),
+        bin.len().next_multiple_of(4),
+    );
     let total = 12 + 8 + jl + 8 + bl;
     let too_large = |_| ExportError::TooLarge(total);
     let u32_of = |n: usize| u32::try_from(n).map_err(too_large);
@@ -373,7 +385,10 @@ pub fn gltf_bytes(
     }
     let mut buffer = json!({"byteLength": bin.len()});
     if format == GltfFormat::Gltf {
-        buffer["uri"] = json!(format!("data:application/octet-stream;base64,{}", base64(&bin)));
+        buffer["uri"] = json!(format!(
+            "data:application/octet-stream;base64,{}",
+            base64(&bin)
+        ));
     }
     json["buffers"] = json!([buffer]);
     let text = serde_json::to_vec(&json).expect("a JSON value always serialises");

@@ -60,8 +60,8 @@ fn materials() -> Vec<Material> {
 /// 2 × 1 texture of 8-bit sRGB values (188 is linear 0.5029; IEC 61966-2-1), with a
 /// cut-out texel (alpha 0.2).
 fn texture() -> Arc<Texture> {
-    let img = image::RgbaImage::from_raw(2, 1, vec![188, 0, 255, 255, 10, 128, 250, 51])
-        .expect("2 × 1");
+    let img =
+        image::RgbaImage::from_raw(2, 1, vec![188, 0, 255, 255, 10, 128, 250, 51]).expect("2 × 1");
     let t = Texture::from_image(
         &image::DynamicImage::ImageRgba8(img),
         crate::scene::texture::TextureKind::Color,
@@ -116,7 +116,10 @@ fn the_export_reads_back_as_written() {
         let pos = floats::<3>(square, Semantic::Positions, &buffers);
         assert_eq!(pos.len(), 4, "the diagonal's two corners are shared");
         let bounds = square.bounding_box();
-        assert_eq!((bounds.min, bounds.max), ([0.0, 0.0, -1.0], [1.0, 1.0, -1.0]));
+        assert_eq!(
+            (bounds.min, bounds.max),
+            ([0.0, 0.0, -1.0], [1.0, 1.0, -1.0])
+        );
         let colour = floats::<3>(square, Semantic::Colors(0), &buffers);
         let radiance = floats::<3>(square, Semantic::Extras("RADIANCE".into()), &buffers);
         let irradiance = floats::<3>(square, Semantic::Extras("IRRADIANCE".into()), &buffers);
@@ -130,19 +133,40 @@ fn the_export_reads_back_as_written() {
             assert_eq!(uv[k], [x * 0.5, 1.0 - y * 0.25]);
         }
         assert!(square.material().unlit());
-        assert_eq!(square.material().pbr_metallic_roughness().base_color_factor(), [1.0; 4]);
-        assert!(square.material().pbr_metallic_roughness().base_color_texture().is_none());
-        let albedo = square.mappings().find(|m| m.variants() == [1]).expect("albedo");
+        assert_eq!(
+            square
+                .material()
+                .pbr_metallic_roughness()
+                .base_color_factor(),
+            [1.0; 4]
+        );
+        assert!(
+            square
+                .material()
+                .pbr_metallic_roughness()
+                .base_color_texture()
+                .is_none()
+        );
+        let albedo = square
+            .mappings()
+            .find(|m| m.variants() == [1])
+            .expect("albedo");
         let albedo = albedo.material();
         assert!(!albedo.unlit());
         assert_eq!(albedo.alpha_mode(), gltf::material::AlphaMode::Mask);
-        let tex = albedo.pbr_metallic_roughness().base_color_texture().expect("map");
+        let tex = albedo
+            .pbr_metallic_roughness()
+            .base_color_texture()
+            .expect("map");
         let img = &images[tex.texture().source().index()];
         assert_eq!((img.width, img.height), (2, 1));
         assert_eq!(img.pixels, vec![188, 0, 255, 255, 10, 128, 250, 51]);
         // The triangle's material has no map: no texture coordinates.
         assert!(prims[1].get(&Semantic::TexCoords(0)).is_none());
-        assert_eq!(floats::<3>(&prims[1], Semantic::Positions, &buffers).len(), 3);
+        assert_eq!(
+            floats::<3>(&prims[1], Semantic::Positions, &buffers).len(),
+            3
+        );
     }
 }
 
@@ -192,8 +216,14 @@ fn bad_input_is_an_error_not_a_panic() {
     assert!(gltf_bytes(&input(&past), GltfFormat::Gltf).is_err());
     let e = GltfFormat::from_path(Path::new("out.obj")).expect_err("obj");
     assert!(e.to_string().contains("out.obj"), "{e}");
-    assert_eq!(GltfFormat::from_path(Path::new("a.GLB")).expect("glb"), GltfFormat::Glb);
+    assert_eq!(
+        GltfFormat::from_path(Path::new("a.GLB")).expect("glb"),
+        GltfFormat::Glb
+    );
     let dir = tempfile::tempdir().expect("tempdir");
-    let e = write_gltf(&dir.path().join("no/such/dir/a.glb"), &input(&two_material_mesh()));
+    let e = write_gltf(
+        &dir.path().join("no/such/dir/a.glb"),
+        &input(&two_material_mesh()),
+    );
     assert!(matches!(e, Err(ExportError::Io { .. })), "{e:?}");
 }

@@ -63,8 +63,11 @@ impl BakedMesh {
         {
             return bad(format!("{} texture coordinates for {n} vertices", uv.len()));
         }
-        if self.indices.len() % 3 != 0 {
-            return bad(format!("{} indices: not whole triangles", self.indices.len()));
+        if !self.indices.len().is_multiple_of(3) {
+            return bad(format!(
+                "{} indices: not whole triangles",
+                self.indices.len()
+            ));
         }
         if self.triangle_material.len() != self.triangle_count() {
             return bad(format!(

@@ -82,7 +82,12 @@ mod tests {
     /// with another value at the same point stays apart.
     #[test]
     fn equal_vertices_weld_within_a_material_only() {
-        let p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+        let p = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
         let mut mesh = BakedMesh::default();
         let corners = [0, 1, 2, 0, 2, 3, 1, 2, 0];
         for (k, &c) in corners.iter().enumerate() {
