@@ -10,6 +10,7 @@ mod bench_images;
 mod bench_meshing;
 mod bench_specular;
 mod bench_targets;
+mod export;
 mod formfactor;
 mod method;
 mod pass;

@@ -141,6 +141,10 @@ pub struct RenderArgs {
     /// One CSV row per element: patch, area, centroid, radiance.
     #[arg(long)]
     pub elements_csv: Option<PathBuf>,
+    /// Also write the solved mesh, lit, as glTF 2.0: `.glb` (binary) or `.gltf` (JSON,
+    /// buffer embedded). Vertex colours are the radiance at --exposure; README "Export to glTF".
+    #[arg(long)]
+    pub export_gltf: Option<PathBuf>,
     /// One JSON summary line on stdout.
     #[arg(long)]
     pub json: bool,
@@ -191,6 +195,9 @@ fn render(args: &RenderArgs) -> Result<()> {
     let process_start = Instant::now();
     // Every flag first: a typo must not cost a scene load or a solve.
     check_image_out(&args.out)?;
+    if let Some(p) = &args.export_gltf {
+        super::export::check_gltf_out(p)?;
+    }
     for (flag, path) in [("--log", &args.log), ("--elements-csv", &args.elements_csv)] {
         if let Some(p) = path {
             check_output(flag, p)?;
@@ -485,6 +492,9 @@ fn render(args: &RenderArgs) -> Result<()> {
                  throw onto diffuse surfaces (caustics) is not included (docs/SPECULAR.md)"
             );
         }
+    }
+    if let Some(p) = &args.export_gltf {
+        super::export::export_gltf(&problem, &radiance, p, args.exposure, args.quiet)?;
     }
     Ok(())
 }

@@ -3,7 +3,8 @@
 //! The pipeline: load a [`scene::Scene`] (an OBJ file, OBJ text, or a built-in), mesh its
 //! faces into shooting patches and receiving elements ([`mesh::Mesh`]), solve by
 //! progressive refinement ([`solver::ProgressiveSolver`], with form factors from
-//! [`formfactor`]), and render the solution from a camera ([`render::render_solution`]).
+//! [`formfactor`]), and render the solution from a camera ([`render::render_solution`]) or
+//! export it, lit, as glTF ([`export::gltf`]).
 //!
 //! This crate is the core: it never depends on a GUI, GPU or command-line crate (its
 //! dependencies are glam, rayon, tobj, image, exr, serde and thiserror), so an engine or a
@@ -91,6 +92,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 pub mod cases;
+pub mod export;
 pub mod formfactor;
 pub mod geometry;
 pub mod mesh;

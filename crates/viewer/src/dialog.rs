@@ -16,6 +16,7 @@ pub enum Purpose {
     Open,
     SaveMtlAs,
     ExportPly,
+    ExportGltf,
     ExportPng,
 }
 

@@ -38,6 +38,11 @@ impl ViewerApp {
                         self.export_ply(&s, &p);
                     }
                 }
+                Purpose::ExportGltf => {
+                    if let Some(s) = self.snapshot.clone() {
+                        self.export_gltf(&s, &p);
+                    }
+                }
                 Purpose::ExportPng => self.request_viewport_png(ctx, p),
             },
             Outcome::Cancelled(_) => {}
@@ -62,6 +67,23 @@ impl ViewerApp {
         let bytes = export::ply_bytes(s, self.panel.view.ambient, self.panel.view.exposure());
         match export::atomic_write(path, &bytes) {
             Ok(()) => self.message(false, format!("exported {}", path.display())),
+            Err(e) => self.message(true, e.to_string()),
+        }
+    }
+
+    fn export_gltf(&mut self, s: &Snapshot, path: &Path) {
+        let (ambient, exposure) = (self.panel.view.ambient, self.panel.view.exposure());
+        match super::export_gltf::write_snapshot_gltf(s, path, ambient, exposure) {
+            Ok(st) => self.message(
+                false,
+                format!(
+                    "exported {}: {} vertices, {} triangles, {} bytes",
+                    path.display(),
+                    st.vertices,
+                    st.triangles,
+                    st.bytes
+                ),
+            ),
             Err(e) => self.message(true, e.to_string()),
         }
     }

@@ -22,6 +22,7 @@ pub mod automation;
 pub mod camera;
 pub mod dialog;
 pub mod export;
+pub mod export_gltf;
 mod files;
 pub mod frame_log;
 mod lights_panel;

@@ -34,6 +34,7 @@ pub enum Action {
     SaveScene,
     ResetEdits,
     ExportPly,
+    ExportGltf,
     ExportPng,
     FrameScene,
     ResetView,
@@ -166,6 +167,9 @@ pub fn menu_bar(ui: &mut egui::Ui, state: &PanelState, actions: &mut Vec<Action>
             ui.separator();
             if ui.button("Export solution (PLY)…").clicked() {
                 actions.push(Action::ExportPly);
+            }
+            if ui.button("Export lit mesh (glTF)…").clicked() {
+                actions.push(Action::ExportGltf);
             }
             if ui.button("Export viewport (PNG)…").clicked() {
                 actions.push(Action::ExportPng);

@@ -72,6 +72,13 @@ impl ViewerApp {
                     self.open_dialog(ctx, r);
                 }
             }
+            Action::ExportGltf => {
+                if let Some(s) = self.snapshot.clone() {
+                    let mut r = Request::new(Purpose::ExportGltf, ("glTF", "glb,gltf"), true);
+                    r.file_name = Some(format!("{}.glb", s.scene_name));
+                    self.open_dialog(ctx, r);
+                }
+            }
             Action::ExportPng => {
                 let mut r = Request::new(Purpose::ExportPng, ("PNG", "png"), true);
                 r.file_name = Some("viewport.png".into());
