@@ -58,6 +58,18 @@ pub fn parse_pass(name: &str, budget: Option<f64>) -> Result<PassChoice> {
     Ok(PassChoice::Fixed(fixed))
 }
 
+impl PassChoice {
+    /// `auto`'s budget no longer than `seconds`, the whole command's time, when given.
+    pub fn within(self, seconds: Option<f64>) -> PassChoice {
+        match (self, seconds) {
+            (PassChoice::Auto { budget }, Some(s)) => PassChoice::Auto {
+                budget: budget.min(s),
+            },
+            (choice, _) => choice,
+        }
+    }
+}
+
 /// The pass chosen, and for `auto` the direct pass's estimated seconds and the budget.
 pub struct Chosen {
     pub pass: Pass,
