@@ -760,3 +760,59 @@ fn mutated_glbs_load_or_are_refused_without_panicking() {
     eprintln!("mutated GLBs: {ok} loaded, {refused} refused");
     assert!(refused > 100 && ok > 10, "{ok} {refused}");
 }
+
+/// A scene file whose model is a glTF: saved from the loaded scene and opened again, it has
+/// the model's four lights once (not added twice) with the spots' cones kept.
+#[test]
+fn a_saved_scene_of_a_gltf_model_keeps_its_lights_once() {
+    use nusselt_core::scene::SceneFile;
+    let s = load("Lights/Lights.glb");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("lights.json");
+    let file = SceneFile::describe(&s, None, &path);
+    assert!(file.replaces_model_lights);
+    file.save(&path).expect("save");
+    let again = SceneFile::read(&path)
+        .expect("read")
+        .load(&path)
+        .expect("load");
+    assert_eq!(again.lights.len(), 4);
+    for (a, b) in s.lights.iter().zip(&again.lights) {
+        match (a, b) {
+            (
+                Light::Point {
+                    cone: Some(x),
+                    intensity: i,
+                    ..
+                },
+                Light::Point {
+                    cone: Some(y),
+                    intensity: j,
+                    ..
+                },
+            ) => {
+                assert!(close(x.direction, y.direction, 1e-9) && (x.outer - y.outer).abs() < 1e-9);
+                assert!(close(*i, *j, 1e-12));
+            }
+            (a, b) => assert_eq!(std::mem::discriminant(a), std::mem::discriminant(b)),
+        }
+    }
+    // Written by hand, without the flag, the file's lights add to the model's.
+    let hand = format!(
+        r#"{{"model": {:?}, "lights": [{{"type": "point", "position": [0, 3, 0], "intensity": [1, 1, 1],
+            "spot": {{"direction": [0, -1, 0], "inner_cone_deg": 10, "outer_cone_deg": 20}}}}]}}"#,
+        model("Lights/Lights.glb").display().to_string()
+    );
+    std::fs::write(&path, hand).expect("write");
+    let added = SceneFile::read(&path)
+        .expect("read")
+        .load(&path)
+        .expect("load");
+    assert_eq!(added.lights.len(), 5);
+    let Light::Point { cone: Some(c), .. } = added.lights[4] else {
+        panic!("{:?}", added.lights[4])
+    };
+    assert!(
+        (c.outer - 20f64.to_radians()).abs() < 1e-12 && close(c.direction, DVec3::NEG_Y, 1e-12)
+    );
+}

@@ -76,7 +76,7 @@ impl SpotEntry {
             .try_normalize()
             .ok_or_else(|| invalid(file, format!("{field}.direction must not be zero")))?;
         let (inner, outer) = (self.inner_cone_deg, self.outer_cone_deg);
-        if !(0.0 <= inner && inner <= outer && outer <= 90.0) {
+        if !((0.0..=outer).contains(&inner) && outer <= 90.0) {
             return Err(invalid(
                 file,
                 format!("{field}: needs 0 <= inner_cone_deg <= outer_cone_deg <= 90"),

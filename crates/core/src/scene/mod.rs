@@ -136,7 +136,7 @@ pub struct Face {
     pub material: MaterialId,
     /// Index of the input face in file order (faces split by loading share it).
     pub source_face: usize,
-    /// 1-based line in the OBJ file, 0 for generated faces.
+    /// 1-based line in the OBJ file, 0 for generated faces and those of a glTF file.
     pub line: usize,
     /// The OBJ `vt` texture coordinates of each vertex, when every vertex of the face has one.
     pub uvs: Option<Vec<DVec2>>,
@@ -153,12 +153,12 @@ pub struct Scene {
     pub camera: Option<Camera>,
     /// Non-fatal problems found while loading (clamped values, dropped faces, …).
     pub warnings: Vec<String>,
-    /// The OBJ file this came from, if any.
+    /// The model file (OBJ or glTF) this came from, if any.
     pub source: Option<PathBuf>,
     /// Light sources that are not faces: sky, suns, point lights ([`lights`]).
     pub lights: Vec<Light>,
     /// The texture maps materials refer to ([`TextureId`] indexes them); read only by
-    /// [`Scene::load_obj`], each distinct file once.
+    /// [`Scene::load_obj`] and [`Scene::load_gltf`], each distinct image once.
     pub textures: Vec<Arc<Texture>>,
     /// Memory held by `textures`, in bytes.
     pub texture_bytes: usize,

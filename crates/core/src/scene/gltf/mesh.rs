@@ -226,7 +226,9 @@ impl Primitive {
             let scale = (vertices[1] - vertices[0])
                 .length()
                 .max((vertices[2] - vertices[0]).length());
-            if !(polygon::area(&vertices) > 1e-12 * scale * scale) {
+            // Written so that a NaN area is dropped too.
+            let kept = polygon::area(&vertices) > 1e-12 * scale * scale;
+            if !kept {
                 *dropped += 1;
                 continue;
             }

@@ -2,7 +2,7 @@
 //! that a model from Blender, a game engine or the Khronos samples opens like an OBJ.
 //!
 //! What is read, and what it becomes (see the submodules for the details):
-//! - geometry ([`mesh`]): every node of the default scene (else the first) that has a mesh,
+//! - geometry (`mesh.rs`): every node of the default scene (else the first) that has a mesh,
 //!   with its world transform composed down the tree; the triangles of `TRIANGLES`,
 //!   `TRIANGLE_STRIP` and `TRIANGLE_FAN` primitives, indexed or not, each one face. A node
 //!   whose transform mirrors (negative determinant) has its winding reversed, so the front
@@ -60,7 +60,7 @@ fn invalid(file: &str, at: &str, message: impl std::fmt::Display) -> SceneError 
 /// Loads a `.gltf` or `.glb` file (see the module docs).
 pub fn load(path: &Path, opts: &LoadOptions) -> Result<Scene, SceneError> {
     let src = data::read(path)?;
-    let mut scene = build(&src, opts)?;
+    let mut scene = guarded(&src, opts)?;
     scene.name = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
@@ -78,9 +78,23 @@ pub fn from_slice(
     opts: &LoadOptions,
 ) -> Result<Scene, SceneError> {
     let src = data::parse(bytes, name.to_string(), dir.to_path_buf())?;
-    let mut scene = build(&src, opts)?;
+    let mut scene = guarded(&src, opts)?;
     scene.name = name.to_string();
     Ok(scene)
+}
+
+/// [`build`], a panic inside the `gltf` crate's readers (on input its validation and the
+/// checks here let through) turned into an error.
+fn guarded(src: &data::Source, opts: &LoadOptions) -> Result<Scene, SceneError> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| build(src, opts))).unwrap_or_else(
+        |_| {
+            Err(invalid(
+                &src.file,
+                "",
+                "the glTF reader failed on this file (malformed input)",
+            ))
+        },
+    )
 }
 
 fn build(src: &data::Source, opts: &LoadOptions) -> Result<Scene, SceneError> {
