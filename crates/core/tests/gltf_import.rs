@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use glam::{DQuat, DVec2, DVec3};
+use glam::{DQuat, DVec3};
 use nusselt_core::geometry::{Rng, polygon};
 use nusselt_core::scene::gltf::{LUMENS_PER_WATT, from_slice};
 use nusselt_core::scene::texture::srgb_to_linear;
@@ -275,7 +275,7 @@ fn document(
     let idx_len = bin.len() - pos_len - uv_len;
     // Room for the one-byte views left empty, padded to 4 bytes.
     bin.push(0);
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let mut attributes = json!({"POSITION": 0});
@@ -333,7 +333,7 @@ fn embedded(doc: &Value, bin: &[u8]) -> Vec<u8> {
 /// The document as a `.glb`.
 fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
     let mut j = serde_json::to_vec(doc).unwrap();
-    while j.len() % 4 != 0 {
+    while !j.len().is_multiple_of(4) {
         j.push(b' ');
     }
     let mut out = Vec::new();
@@ -505,7 +505,6 @@ fn texture_coordinates_follow_gltfs_top_left_origin() {
         assert_eq!(alpha, if mode == "MASK" { 0.0 } else { 1.0 }, "{mode}");
         assert_eq!(s.materials[0].alpha_map.is_some(), mode == "MASK");
     }
-    let _ = DVec2::ZERO;
 }
 
 #[test]
@@ -527,7 +526,7 @@ fn transmission_and_blend_make_glass_and_mixed_sides_get_back_faces() {
     assert_eq!(
         s.materials[0].surface,
         Surface::Glass {
-            ior: 1.33 as f32 as f64
+            ior: f64::from(1.33_f32)
         }
     );
     assert_eq!(s.materials[1].surface, Surface::Glass { ior: 1.5 });
