@@ -707,6 +707,11 @@ fn bad_files_are_errors_naming_the_file_and_json_path() {
     d["meshes"][0]["primitives"][0]["material"] = json!(9);
     let e = error(&embedded(&d, &bin));
     assert!(e.contains("meshes[0].primitives[0].material"), "{e}");
+    // A node that is its own grandchild.
+    let mut d = doc.clone();
+    d["nodes"] = json!([{"children": [1]}, {"mesh": 0, "children": [0]}]);
+    let e = error(&embedded(&d, &bin));
+    assert!(e.contains("nodes["), "{e}");
     // Only lines: nothing left to load.
     let mut d = doc.clone();
     d["meshes"][0]["primitives"][0]["mode"] = json!(1);

@@ -36,10 +36,11 @@ pub(super) fn lights(
     instances: &[Instance],
     warnings: &mut Vec<String>,
 ) -> Vec<Light> {
+    let nodes: Vec<::gltf::Node> = src.doc.nodes().collect();
     let mut out = Vec::new();
     let mut ranged = 0;
     for inst in instances {
-        let Some(light) = src.doc.nodes().nth(inst.node).and_then(|n| n.light()) else {
+        let Some(light) = nodes[inst.node].light() else {
             continue;
         };
         let at = format!(
@@ -111,8 +112,9 @@ pub(super) fn camera(
     instances: &[Instance],
     warnings: &mut Vec<String>,
 ) -> Option<Camera> {
+    let nodes: Vec<::gltf::Node> = src.doc.nodes().collect();
     for inst in instances {
-        let Some(cam) = src.doc.nodes().nth(inst.node).and_then(|n| n.camera()) else {
+        let Some(cam) = nodes[inst.node].camera() else {
             continue;
         };
         let ::gltf::camera::Projection::Perspective(p) = cam.projection() else {

@@ -15,9 +15,6 @@ use super::invalid;
 use crate::geometry::polygon;
 use crate::scene::{Face, MaterialId, SceneError};
 
-/// Deepest node tree walked (a cycle in `children` would otherwise never end).
-const MAX_DEPTH: usize = 256;
-
 /// A node placed in the world.
 pub(super) struct Instance {
     pub node: usize,
@@ -41,18 +38,21 @@ pub(super) fn instances(src: &Source) -> Result<Vec<Instance>, SceneError> {
         }
     };
     let mut out = Vec::new();
-    let mut stack: Vec<(::gltf::Node, DMat4, usize)> = roots
+    let mut stack: Vec<(::gltf::Node, DMat4)> = roots
         .into_iter()
         .rev()
-        .map(|n| (n, DMat4::IDENTITY, 0))
+        .map(|n| (n, DMat4::IDENTITY))
         .collect();
-    while let Some((node, parent, depth)) = stack.pop() {
+    // glTF's node hierarchy is a set of disjoint trees: a node met twice is a cycle or a
+    // second parent, refused (it would otherwise never end or repeat a subtree).
+    let mut seen = vec![false; doc.nodes().len()];
+    while let Some((node, parent)) = stack.pop() {
         let at = format!("nodes[{}]", node.index());
-        if depth > MAX_DEPTH {
+        if std::mem::replace(&mut seen[node.index()], true) {
             return Err(invalid(
                 &src.file,
                 &at,
-                format!("the node tree is deeper than {MAX_DEPTH} (do its children form a cycle?)"),
+                "is reached twice in the node tree (a cycle, or a node with two parents)",
             ));
         }
         let local = node.transform().matrix().map(|c| c.map(f64::from));
@@ -61,7 +61,7 @@ pub(super) fn instances(src: &Source) -> Result<Vec<Instance>, SceneError> {
             return Err(invalid(&src.file, &at, "its world transform is not finite"));
         }
         for c in node.children().collect::<Vec<_>>().into_iter().rev() {
-            stack.push((c, world, depth + 1));
+            stack.push((c, world));
         }
         out.push(Instance {
             node: node.index(),
@@ -90,9 +90,10 @@ pub(super) fn faces(
     uv_set: &UvSets,
     stats: &mut MeshStats,
 ) -> Result<Vec<Face>, SceneError> {
+    let nodes: Vec<::gltf::Node> = src.doc.nodes().collect();
     let mut out = Vec::new();
     for inst in instances {
-        let Some(mesh) = src.doc.nodes().nth(inst.node).and_then(|n| n.mesh()) else {
+        let Some(mesh) = nodes[inst.node].mesh() else {
             continue;
         };
         for prim in mesh.primitives() {
