@@ -707,6 +707,14 @@ fn bad_files_are_errors_naming_the_file_and_json_path() {
     d["meshes"][0]["primitives"][0]["material"] = json!(9);
     let e = error(&embedded(&d, &bin));
     assert!(e.contains("meshes[0].primitives[0].material"), "{e}");
+    // POSITION naming an accessor that is not there.
+    let mut d = doc.clone();
+    d["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(5);
+    let e = error(&embedded(&d, &bin));
+    assert!(
+        e.contains("meshes[0].primitives[0].attributes.POSITION: accessors[5] does not exist"),
+        "{e}"
+    );
     // A node that is its own grandchild.
     let mut d = doc.clone();
     d["nodes"] = json!([{"children": [1]}, {"mesh": 0, "children": [0]}]);

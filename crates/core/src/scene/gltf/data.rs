@@ -34,11 +34,19 @@ pub(super) fn read(path: &Path) -> Result<Source, SceneError> {
 
 /// Parses glTF or GLB `bytes` (display name `file`, relative URIs resolved in `dir`).
 pub(super) fn parse(bytes: &[u8], file: String, dir: PathBuf) -> Result<Source, SceneError> {
-    let parsed = std::panic::catch_unwind(|| ::gltf::Gltf::from_slice(bytes))
-        .map_err(|_| invalid(&file, "", "the glTF parser failed on this file"))?;
-    let gltf = parsed.map_err(|e| parse_error(&file, e))?;
+    let parsed = std::panic::catch_unwind(|| {
+        let gltf = ::gltf::Gltf::from_slice_without_validation(bytes)?;
+        let attributes = attribute_indices(gltf.document.as_json());
+        Ok((attributes, gltf))
+    });
+    let (attributes, gltf) = parsed
+        .map_err(|_| invalid(&file, "", "the glTF parser failed on this file"))?
+        .map_err(|e| parse_error(&file, e))?;
+    attributes.map_err(|(at, m)| invalid(&file, &at, m))?;
     let mut blob = gltf.blob;
-    let doc = gltf.document;
+    let doc = std::panic::catch_unwind(|| ::gltf::Document::from_json(gltf.document.into_json()))
+        .map_err(|_| invalid(&file, "", "the glTF validation failed on this file"))?
+        .map_err(|e| parse_error(&file, e))?;
     let mut buffers = Vec::new();
     for b in doc.buffers() {
         let at = format!("buffers[{}]", b.index());
@@ -89,6 +97,32 @@ pub(super) fn parse(bytes: &[u8], file: String, dir: PathBuf) -> Result<Source, 
         dir,
         file,
     })
+}
+
+/// Checks that every primitive attribute names an accessor that exists, which the `gltf`
+/// crate's validation assumes of POSITION (it indexes the accessors with it).
+fn attribute_indices(root: &::gltf::json::Root) -> Result<(), (String, String)> {
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            for (semantic, index) in &prim.attributes {
+                if index.value() >= root.accessors.len() {
+                    let name = match semantic {
+                        ::gltf::json::validation::Checked::Valid(s) => s.to_string(),
+                        ::gltf::json::validation::Checked::Invalid => "?".into(),
+                    };
+                    return Err((
+                        format!("meshes[{m}].primitives[{p}].attributes.{name}"),
+                        format!(
+                            "accessors[{}] does not exist ({} accessors)",
+                            index.value(),
+                            root.accessors.len()
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The `gltf` crate's error as a message naming the JSON paths it found wrong.
