@@ -53,10 +53,11 @@ pub enum Command {
     Bench(bench::BenchArgs),
 }
 
-/// Which scene to load: an OBJ file or a built-in.
+/// Which scene to load: a model file or a built-in.
 #[derive(Args, Debug, Clone)]
 pub struct SceneArgs {
-    /// OBJ file (with its MTL files next to it), or a scene file (`.json`: a model, its
+    /// OBJ file (with its MTL files next to it), glTF 2.0 file (`.gltf` or `.glb`), or a
+    /// scene file (`.json`: a model, its
     /// lights, camera and material edits; see the README).
     pub scene: Option<PathBuf>,
     /// Built-in scene: cornell, cornell-specular (a mirror and a glass block), cornell-glossy
@@ -148,10 +149,10 @@ impl SceneArgs {
                 scene.two_sided |= self.two_sided;
                 scene
             }
-            (Some(path), None) => Scene::load_obj(path, &opts)?,
+            (Some(path), None) => Scene::load(path, &opts)?,
             (None, Some(name)) => Scene::builtin(name, &opts)?,
-            (None, None) => bail!("give a scene: an OBJ file or --builtin cornell|furnace"),
-            (Some(_), Some(_)) => bail!("give either an OBJ file or --builtin, not both"),
+            (None, None) => bail!("give a scene: an OBJ or glTF file or --builtin cornell|furnace"),
+            (Some(_), Some(_)) => bail!("give either a model file or --builtin, not both"),
         };
         if self.rho.is_some() && scene.name != "furnace" && scene.name != "cube" {
             bail!("--rho applies to the furnace and cube scenes only");

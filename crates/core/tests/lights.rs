@@ -71,6 +71,7 @@ fn a_point_light_over_a_floor_gives_i_cos_over_r_squared() {
     scene.lights.push(Light::Point {
         position: DVec3::new(0.0, h, 0.0),
         intensity: DVec3::splat(i),
+        cone: None,
     });
     let mut s = solver(scene, h / 8.0);
     converge(&mut s);
@@ -197,6 +198,7 @@ fn a_light_edit_converges_to_a_fresh_solve() {
         scene.lights.push(Light::Point {
             position: DVec3::new(278.0, 400.0, 280.0),
             intensity: DVec3::splat(radiance),
+            cone: None,
         });
         scene
     };

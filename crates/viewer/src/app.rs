@@ -299,15 +299,15 @@ impl eframe::App for ViewerApp {
                 .collect()
         });
         for p in dropped {
-            let known = |e: &std::ffi::OsStr| {
-                e.eq_ignore_ascii_case("obj") || e.eq_ignore_ascii_case("json")
-            };
-            if p.extension().is_some_and(known) {
+            if nusselt_core::scene::is_model_file(&p) || nusselt_core::scene::is_scene_file(&p) {
                 self.handle(ctx, Action::Open(p));
             } else {
                 self.message(
                     true,
-                    format!("{}: not an .obj model or .json scene file", p.display()),
+                    format!(
+                        "{}: not an .obj, .gltf or .glb model or .json scene file",
+                        p.display()
+                    ),
                 );
             }
         }

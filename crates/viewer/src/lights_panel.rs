@@ -65,6 +65,7 @@ fn kind(light: &Light) -> &'static str {
     match light {
         Light::Sky { .. } => "sky",
         Light::Sun { .. } => "sun",
+        Light::Point { cone: Some(_), .. } => "spot",
         Light::Point { .. } => "point",
     }
 }
@@ -104,6 +105,7 @@ fn light_row(ui: &mut egui::Ui, k: usize, light: &mut Light, step: f64) -> RowEd
         Light::Point {
             position,
             intensity,
+            ..
         } => {
             changed |= point_position(ui, position, step);
             changed |= strength(ui, "intensity", intensity, 1e9);
@@ -192,6 +194,7 @@ pub fn lights_section(
                     lights.push(Light::Point {
                         position: centre,
                         intensity: Rgb::splat(std::f64::consts::PI * r * r),
+                        cone: None,
                     });
                     changed = true;
                 }

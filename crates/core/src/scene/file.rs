@@ -1,4 +1,4 @@
-//! The scene file (`*.json`): a model (an OBJ path relative to the file, or a built-in), the
+//! The scene file (`*.json`): a model (an OBJ or glTF path relative to the file, or a built-in), the
 //! lights added to it, the camera and the material edits, so that what a user set up can be
 //! saved and opened again. Unknown fields are refused, and every error names the file, the
 //! line and the field. The format is documented in the README ("Scene files").
@@ -8,15 +8,19 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
-use super::{Camera, Light, LoadOptions, Rgb, Scene, SceneError};
+use super::{Camera, Light, LoadOptions, Rgb, Scene, SceneError, SpotCone};
 
 /// What a scene file holds.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneFile {
-    /// OBJ file, relative to the scene file's folder.
+    /// OBJ, glTF or GLB file, relative to the scene file's folder.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model: Option<String>,
+    /// `lights` replace the lights the model brings (a glTF file's `KHR_lights_punctual`)
+    /// instead of adding to them: what a saved scene says, since it lists every light.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub replaces_model_lights: bool,
     /// A built-in scene instead of a model.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub builtin: Option<String>,
@@ -46,12 +50,44 @@ pub enum LightEntry {
     Point {
         position: [f64; 3],
         intensity: [f64; 3],
+        /// A spot light's cone ([`super::SpotCone`]).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        spot: Option<SpotEntry>,
     },
     /// A planar convex emitter, counter-clockwise seen from the side it lights.
     Area {
         corners: Vec<[f64; 3]>,
         radiance: [f64; 3],
     },
+}
+
+/// A spot light's cone: the way it shines and its inner and outer half-angles.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpotEntry {
+    pub direction: [f64; 3],
+    pub inner_cone_deg: f64,
+    pub outer_cone_deg: f64,
+}
+
+impl SpotEntry {
+    fn cone(&self, file: &Path, field: &str) -> Result<SpotCone, SceneError> {
+        let direction = point(file, &format!("{field}.direction"), self.direction)?
+            .try_normalize()
+            .ok_or_else(|| invalid(file, format!("{field}.direction must not be zero")))?;
+        let (inner, outer) = (self.inner_cone_deg, self.outer_cone_deg);
+        if !((0.0..=outer).contains(&inner) && outer <= 90.0) {
+            return Err(invalid(
+                file,
+                format!("{field}: needs 0 <= inner_cone_deg <= outer_cone_deg <= 90"),
+            ));
+        }
+        Ok(SpotCone {
+            direction,
+            inner: inner.to_radians(),
+            outer: outer.to_radians(),
+        })
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -131,9 +167,14 @@ impl LightEntry {
             LightEntry::Point {
                 position,
                 intensity,
+                spot,
             } => Light::Point {
                 position: point(file, &format!("{field}.position"), position)?,
                 intensity: colour(file, &format!("{field}.intensity"), intensity)?,
+                cone: match spot {
+                    Some(s) => Some(s.cone(file, &format!("{field}.spot"))?),
+                    None => None,
+                },
             },
             LightEntry::Area {
                 ref corners,
@@ -181,15 +222,18 @@ impl SceneFile {
         };
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let mut scene = match (&self.model, &self.builtin) {
-            (Some(m), None) => Scene::load_obj(&dir.join(m), &opts)?,
+            (Some(m), None) => Scene::load(&dir.join(m), &opts)?,
             (None, Some(b)) => Scene::builtin(b, &opts)?,
             _ => {
                 return Err(invalid(
                     path,
-                    "give exactly one of \"model\" (an OBJ path) and \"builtin\"".into(),
+                    "give exactly one of \"model\" (an OBJ or glTF path) and \"builtin\"".into(),
                 ));
             }
         };
+        if self.replaces_model_lights {
+            scene.lights.clear();
+        }
         for (name, edit) in &self.materials {
             let field = format!("materials.{name}");
             let Some(m) = scene.materials.iter_mut().find(|m| &m.name == name) else {
@@ -256,6 +300,7 @@ impl SceneFile {
             })
             .collect();
         SceneFile {
+            replaces_model_lights: scene.source.as_deref().is_some_and(super::is_gltf_file),
             model,
             builtin,
             two_sided: scene.two_sided,
@@ -300,9 +345,15 @@ impl From<&Light> for LightEntry {
             Light::Point {
                 position,
                 intensity,
+                cone,
             } => LightEntry::Point {
                 position: position.to_array(),
                 intensity: intensity.to_array(),
+                spot: cone.map(|c| SpotEntry {
+                    direction: c.direction.to_array(),
+                    inner_cone_deg: c.inner.to_degrees(),
+                    outer_cone_deg: c.outer.to_degrees(),
+                }),
             },
         }
     }

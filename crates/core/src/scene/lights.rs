@@ -11,7 +11,8 @@
 //!   ray escapes (1 on an unoccluded plane facing up: `H = π L`; 0 inside a closed box);
 //! - sun: `E · max(0, n·s) · V / π`, `s` the unit direction *towards* the sun, `V` its
 //!   visibility (a cone of `angular_radius` for a soft shadow, one direction for a hard one);
-//! - point: `I · max(0, n·w) · V / (π r²)`, inverse-square.
+//! - point: `I · max(0, n·w) · V / (π r²)`, inverse-square; a spot light (a point light with
+//!   a [`SpotCone`]) multiplies that by its cone's falloff.
 
 use glam::DVec3;
 
@@ -29,8 +30,34 @@ pub enum Light {
         /// Half-angle of the sun's disc in radians (0: a hard shadow).
         angular_radius: f64,
     },
-    /// An isotropic point light.
-    Point { position: DVec3, intensity: Rgb },
+    /// A point light: isotropic, or a spot light when it has a `cone` (`intensity` is then
+    /// the intensity on the cone's axis).
+    Point {
+        position: DVec3,
+        intensity: Rgb,
+        cone: Option<SpotCone>,
+    },
+}
+
+/// A spot light's cone, as glTF's `KHR_lights_punctual` defines it: the full intensity within
+/// `inner` radians of the axis `direction` (unit, the way the light shines), none beyond
+/// `outer`, and between them the square of a ramp linear in the cosine of the angle (the
+/// falloff the extension's specification gives).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpotCone {
+    pub direction: DVec3,
+    pub inner: f64,
+    pub outer: f64,
+}
+
+impl SpotCone {
+    /// The fraction of the axis intensity sent along unit `w` (from the light outwards):
+    /// `t²`, `t = clamp((w·d − cos outer) / max(10⁻³, cos inner − cos outer), 0, 1)`.
+    pub fn falloff(&self, w: DVec3) -> f64 {
+        let (ci, co) = (self.inner.cos(), self.outer.cos());
+        let t = ((w.dot(self.direction) - co) / (ci - co).max(1e-3)).clamp(0.0, 1.0);
+        t * t
+    }
 }
 
 /// What `--sky`, `--sun` or `--point` was given that cannot be used.
@@ -120,6 +147,7 @@ impl Light {
         Ok(Light::Point {
             position: DVec3::new(v[0], v[1], v[2]),
             intensity: colour("--point", text, &v[3..6])?,
+            cone: None,
         })
     }
 
@@ -143,13 +171,31 @@ impl Light {
             Light::Point {
                 position,
                 intensity,
-            } => format!(
-                "point light at {:.3},{:.3},{:.3} of intensity {}",
-                position.x,
-                position.y,
-                position.z,
-                c(*intensity)
-            ),
+                cone,
+            } => {
+                let spot = cone.map_or(String::new(), |k| {
+                    format!(
+                        " shining along {:.3},{:.3},{:.3} (cone {:.1}° to {:.1}°)",
+                        k.direction.x,
+                        k.direction.y,
+                        k.direction.z,
+                        k.inner.to_degrees(),
+                        k.outer.to_degrees()
+                    )
+                });
+                format!(
+                    "{} at {:.3},{:.3},{:.3} of intensity {}{spot}",
+                    if cone.is_some() {
+                        "spot light"
+                    } else {
+                        "point light"
+                    },
+                    position.x,
+                    position.y,
+                    position.z,
+                    c(*intensity)
+                )
+            }
         }
     }
 
@@ -260,13 +306,16 @@ pub fn punctual_incident(
             Light::Point {
                 position,
                 intensity,
+                cone,
             } => {
                 let d = position - x;
                 let r2 = d.length_squared();
                 let Some(w) = d.try_normalize() else { continue };
                 let cos = n.dot(w);
-                if cos > 0.0 && intensity.max_element() > 0.0 {
-                    sum += intensity * (cos * visible(w, r2.sqrt()) / (std::f64::consts::PI * r2));
+                let spot = cone.map_or(1.0, |k| k.falloff(-w));
+                if cos > 0.0 && spot > 0.0 && intensity.max_element() > 0.0 {
+                    sum += intensity
+                        * (spot * cos * visible(w, r2.sqrt()) / (std::f64::consts::PI * r2));
                 }
             }
             Light::Sky { .. } => {}
@@ -319,6 +368,7 @@ mod tests {
         let point = Light::Point {
             position: DVec3::new(3.0, 4.0, 0.0),
             intensity: Rgb::splat(25.0),
+            cone: None,
         };
         let h = punctual_incident(&[point], DVec3::ZERO, DVec3::Y, (0.5, 0.5), &open);
         // I cosθ / r² = 25 · 0.8 / 25.
@@ -328,6 +378,36 @@ mod tests {
             punctual_incident(&[sun, point], DVec3::ZERO, DVec3::Y, (0.5, 0.5), &shut),
             Rgb::ZERO
         );
+    }
+
+    /// The KHR_lights_punctual falloff: 1 inside the inner cone, 0 outside the outer one, and
+    /// at the cosine halfway between the two, (½)² = ¼.
+    #[test]
+    fn a_spot_light_falls_off_between_its_cones() {
+        let open = |_: DVec3, _: f64| 1.0;
+        let (inner, outer) = (0.2f64, 0.4f64);
+        let spot = |pos: DVec3| Light::Point {
+            position: pos,
+            intensity: Rgb::splat(1.0),
+            cone: Some(SpotCone {
+                direction: DVec3::NEG_Y,
+                inner,
+                outer,
+            }),
+        };
+        let at = |angle: f64| {
+            // A receiver 1 below and `angle` off the axis, facing the light.
+            let x = DVec3::new(angle.tan(), -1.0, 0.0);
+            let n = (DVec3::ZERO - x).normalize_or_zero();
+            punctual_incident(&[spot(DVec3::ZERO)], x, n, (0.5, 0.5), &open)
+                * (std::f64::consts::PI * x.length_squared())
+        };
+        assert!((at(0.0).x - 1.0).abs() < 1e-12);
+        assert!((at(0.19).x - 1.0).abs() < 1e-12);
+        assert_eq!(at(0.41).x, 0.0);
+        let half = (0.5 * (inner.cos() + outer.cos())).acos();
+        assert!((at(half).x - 0.25).abs() < 1e-9, "{}", at(half));
+        assert!(spot(DVec3::ZERO).describe().starts_with("spot light"));
     }
 
     #[test]

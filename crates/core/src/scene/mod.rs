@@ -1,4 +1,5 @@
-//! Scene description: planar polygons with Lambertian materials, read from OBJ/MTL.
+//! Scene description: planar polygons with Lambertian materials, read from OBJ/MTL or glTF 2.0
+//! ([`gltf`]; [`Scene::load`] picks the reader by the file's extension).
 //!
 //! Units: `Kd` is RGB reflectance in [0, 1); `Ke` is RGB emitted radiance
 //! (W·m⁻²·sr⁻¹ per channel). Radiosity is solved in radiance units, `L = Ke + ρ Σ F L`, so a
@@ -20,6 +21,7 @@ mod camera;
 mod default_lights;
 pub mod file;
 pub mod gallery;
+pub mod gltf;
 pub mod lights;
 mod maps;
 mod specular;
@@ -32,7 +34,7 @@ mod validate;
 pub use camera::Camera;
 pub use default_lights::{DEFAULT_LIGHTS_HINT, DEFAULT_SKY, DEFAULT_SUN, default_sun_direction};
 pub use file::{SceneFile, is_scene_file};
-pub use lights::{Light, LightError};
+pub use lights::{Light, LightError, SpotCone};
 pub use maps::{UvTransform, resolve_texture_path};
 pub use texture::{Texture, TextureId};
 pub use texturing::TextureMean;
@@ -134,7 +136,7 @@ pub struct Face {
     pub material: MaterialId,
     /// Index of the input face in file order (faces split by loading share it).
     pub source_face: usize,
-    /// 1-based line in the OBJ file, 0 for generated faces.
+    /// 1-based line in the OBJ file, 0 for generated faces and those of a glTF file.
     pub line: usize,
     /// The OBJ `vt` texture coordinates of each vertex, when every vertex of the face has one.
     pub uvs: Option<Vec<DVec2>>,
@@ -151,12 +153,12 @@ pub struct Scene {
     pub camera: Option<Camera>,
     /// Non-fatal problems found while loading (clamped values, dropped faces, …).
     pub warnings: Vec<String>,
-    /// The OBJ file this came from, if any.
+    /// The model file (OBJ or glTF) this came from, if any.
     pub source: Option<PathBuf>,
     /// Light sources that are not faces: sky, suns, point lights ([`lights`]).
     pub lights: Vec<Light>,
     /// The texture maps materials refer to ([`TextureId`] indexes them); read only by
-    /// [`Scene::load_obj`], each distinct file once.
+    /// [`Scene::load_obj`] and [`Scene::load_gltf`], each distinct image once.
     pub textures: Vec<Arc<Texture>>,
     /// Memory held by `textures`, in bytes.
     pub texture_bytes: usize,
@@ -215,7 +217,48 @@ pub const BUILTINS: &[&str] = &[
     "cornell-glossy",
 ];
 
+/// The model file extensions [`Scene::load`] reads.
+pub const MODEL_EXTENSIONS: &[&str] = &["obj", "gltf", "glb"];
+
+fn has_extension(path: &Path, names: &[&str]) -> bool {
+    path.extension()
+        .is_some_and(|e| names.iter().any(|n| e.eq_ignore_ascii_case(n)))
+}
+
+/// Whether `path` names a glTF file (`.gltf` or `.glb`).
+pub fn is_gltf_file(path: &Path) -> bool {
+    has_extension(path, &["gltf", "glb"])
+}
+
+/// Whether `path` names a model [`Scene::load`] reads (see [`MODEL_EXTENSIONS`]).
+pub fn is_model_file(path: &Path) -> bool {
+    has_extension(path, MODEL_EXTENSIONS)
+}
+
 impl Scene {
+    /// Loads a model by its extension: `.obj` ([`Scene::load_obj`]), `.gltf` or `.glb`
+    /// ([`Scene::load_gltf`]); any other is an error naming what is accepted.
+    pub fn load(path: &Path, opts: &LoadOptions) -> Result<Scene, SceneError> {
+        if has_extension(path, &["obj"]) {
+            Scene::load_obj(path, opts)
+        } else if is_gltf_file(path) {
+            Scene::load_gltf(path, opts)
+        } else {
+            Err(SceneError::Invalid {
+                file: path.display().to_string(),
+                message: "not a model Nusselt reads: give a Wavefront .obj (with its .mtl), \
+                          a glTF 2.0 .gltf or .glb, or a .json scene file"
+                    .into(),
+            })
+        }
+    }
+
+    /// Loads a glTF 2.0 file, `.gltf` (JSON with external or embedded buffers and images) or
+    /// `.glb` (binary); see [`gltf`] for what is read and how.
+    pub fn load_gltf(path: &Path, opts: &LoadOptions) -> Result<Scene, SceneError> {
+        gltf::load(path, opts)
+    }
+
     /// Loads an OBJ file and the MTL files it names (relative to the OBJ's folder).
     pub fn load_obj(path: &Path, opts: &LoadOptions) -> Result<Scene, SceneError> {
         let text = std::fs::read(path).map_err(|source| SceneError::Io {

@@ -16,7 +16,7 @@ impl ViewerApp {
                 ctx,
                 Request::new(
                     Purpose::Open,
-                    ("OBJ model or scene file", "obj,json"),
+                    ("OBJ or glTF model, or scene file", "obj,gltf,glb,json"),
                     false,
                 ),
             ),

@@ -512,6 +512,6 @@ fn load_path(path: &std::path::Path) -> Result<Scene, nusselt_core::scene::Scene
     if nusselt_core::scene::is_scene_file(path) {
         nusselt_core::scene::SceneFile::read(path)?.load(path)
     } else {
-        Scene::load_obj(path, &LoadOptions::default())
+        Scene::load(path, &LoadOptions::default())
     }
 }
