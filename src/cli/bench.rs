@@ -38,7 +38,9 @@ pub struct BenchArgs {
     /// hybrid against path tracer), `targets` (the Cornell box's whole-process time to 5 %,
     /// 2 % and 1 % image error, `nusselt render` run as a child process, against the path
     /// tracer), `large`: the gallery and a million-element
-    /// Cornell box with shooting, hierarchical and wavelet radiosity, several minutes).
+    /// Cornell box with shooting, hierarchical and wavelet radiosity, several minutes;
+    /// `sponza`: the 263 k-triangle atrium with default flags, `nusselt render` as a child
+    /// process: setup phases, shots/s, the vertex pass, peak memory, about 4 minutes).
     #[arg(long)]
     pub only: Option<String>,
     /// The Cornell box's path-traced reference image for `cornell-image`.
@@ -52,6 +54,9 @@ pub struct BenchArgs {
     /// against the path tracer; see docs/SPECULAR.md for how it was made).
     #[arg(long, default_value = "benches/data/cornell_specular_256_ref.pfm")]
     pub specular_reference: PathBuf,
+    /// The Crytek atrium's OBJ for `sponza`.
+    #[arg(long, default_value = "../shared/models/crytek_sponza/sponza.obj")]
+    pub sponza: PathBuf,
 }
 
 /// Resets the process's peak resident memory (Linux: `5` to `/proc/self/clear_refs`), so
@@ -343,6 +348,10 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             &args.cornell_reference,
             &args.gallery_reference,
         )?;
+    }
+    // Needs a model that is not part of the program: only when asked for.
+    if args.only.as_deref().is_some_and(|o| "sponza".contains(o)) {
+        super::bench_sponza::sponza(&args.out, &args.sponza)?;
     }
     if wanted("cornell-image") {
         super::bench_cornell::cornell(&args.out, &args.cornell_reference, args.seconds)?;

@@ -9,6 +9,7 @@ mod bench_hierarchical;
 mod bench_images;
 mod bench_meshing;
 mod bench_specular;
+mod bench_sponza;
 mod bench_targets;
 mod export;
 mod formfactor;
