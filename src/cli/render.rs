@@ -131,9 +131,10 @@ pub struct RenderArgs {
     /// Leave out the ambient term (shown by default while unconverged).
     #[arg(long)]
     pub no_ambient: bool,
-    /// PNG exposure multiplier.
-    #[arg(long, allow_negative_numbers = true, default_value_t = 1.0)]
-    pub exposure: f64,
+    /// PNG exposure multiplier (default 1, or, when the image is nearly black at 1 —
+    /// weak lights for the scene's size — the power of √2 that shows it, printed).
+    #[arg(long, allow_negative_numbers = true)]
+    pub exposure: Option<f64>,
     /// Reference image (PFM) to measure the image error against.
     #[arg(long)]
     pub reference: Option<PathBuf>,
@@ -260,7 +261,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         bail!("--patch-size must be a positive number, got {p}");
     }
     check_count("--vis-rays", args.vis_rays, MAX_VIS_RAYS)?;
-    if !(args.exposure.is_finite() && args.exposure > 0.0) {
+    if args.exposure.is_some_and(|e| !(e.is_finite() && e > 0.0)) {
         bail!("--exposure must be a positive number");
     }
     let method = parse_method("--formfactor", &args.formfactor)?;
@@ -412,7 +413,21 @@ fn render(args: &RenderArgs) -> Result<()> {
         args.gather_rays,
     );
     let render_seconds = render_start.elapsed().as_secs_f64();
-    image.save(&args.out, args.exposure)?;
+    let exposure = match args.exposure {
+        Some(e) => e,
+        None => {
+            let stops =
+                render::image::dark_exposure_stops(render::image::luminance(&image)).unwrap_or(0.0);
+            if stops > 0.0 && !args.quiet && !args.json {
+                eprintln!(
+                    "the image is nearly black at exposure 1 (lights weak for the scene's size): PNG and glTF colours at exposure {:.4} (+{stops} stops; --exposure to choose)",
+                    stops.exp2()
+                );
+            }
+            stops.exp2()
+        }
+    };
+    image.save(&args.out, exposure)?;
 
     let error = match &reference {
         Some(r) => {
@@ -463,6 +478,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         "pass_estimate_seconds": chosen.estimate,
         "time_budget": chosen.budget,
         "render_seconds": render_seconds,
+        "exposure": exposure,
         "total_seconds": process_start.elapsed().as_secs_f64(),
         "unshot_fraction": residual,
         "error": error,
@@ -514,7 +530,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         }
     }
     if let Some(p) = &args.export_gltf {
-        super::export::export_gltf(&problem, &radiance, p, args.exposure, args.quiet)?;
+        super::export::export_gltf(&problem, &radiance, p, exposure, args.quiet)?;
     }
     Ok(())
 }

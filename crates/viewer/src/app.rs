@@ -34,6 +34,7 @@ pub struct ViewerApp {
     pub(super) snapshot: Option<Arc<Snapshot>>,
     new_snapshot: bool,
     scene_rev: Option<u64>,
+    auto_exposure: super::auto_exposure::AutoExposure,
     pub(super) camera: Option<OrbitCamera>,
     pub(super) viewport_rect: egui::Rect,
     pub(super) panel: PanelState,
@@ -153,6 +154,7 @@ impl ViewerApp {
             snapshot: None,
             new_snapshot: false,
             scene_rev: None,
+            auto_exposure: super::auto_exposure::AutoExposure::new(options.exposure_stops),
             camera: None,
             viewport_rect: egui::Rect::NOTHING,
             panel,
@@ -210,6 +212,10 @@ impl ViewerApp {
 
     fn on_snapshot(&mut self, s: Arc<Snapshot>) {
         if self.scene_rev != Some(s.scene_rev) {
+            if self.scene_rev.is_some() {
+                self.auto_exposure
+                    .on_new_scene(&mut self.panel.view.exposure_stops);
+            }
             self.scene_rev = Some(s.scene_rev);
             self.camera = Some(OrbitCamera::from_camera(
                 &s.scene_camera,
@@ -255,8 +261,34 @@ impl ViewerApp {
         {
             self.panel.editor = None;
         }
+        self.check_exposure(&s);
         self.snapshot = Some(s);
         self.new_snapshot = true;
+    }
+
+    /// The first lit snapshot of a scene whose exposure nobody chose: a dark scene gets the
+    /// exposure that shows it ([`super::auto_exposure`]).
+    fn check_exposure(&mut self, s: &Snapshot) {
+        if !self.auto_exposure.armed {
+            return;
+        }
+        let displayed: Vec<[f32; 3]> = s
+            .radiance
+            .iter()
+            .zip(s.correction.iter())
+            .map(|(b, g)| [0, 1, 2].map(|c| b[c] + g[c]))
+            .collect();
+        if let Some(stops) = self
+            .auto_exposure
+            .on_snapshot(&displayed, &mut self.panel.view.exposure_stops)
+        {
+            self.message(
+                false,
+                format!(
+                    "the scene is nearly black at exposure 0 (its lights are weak for its size): exposure set to +{stops} stops (Display; --exposure to choose)"
+                ),
+            );
+        }
     }
 
     fn on_event(&mut self, e: Event) {

@@ -18,6 +18,7 @@
 //! Nothing here is used by the core; the core never imports egui, eframe or wgpu.
 
 pub mod app;
+mod auto_exposure;
 pub mod automation;
 pub mod camera;
 pub mod dialog;

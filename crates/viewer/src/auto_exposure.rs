@@ -1,0 +1,115 @@
+//! A first view that is not black ([`dark_exposure_stops`]): a scene whose lights are weak for its size (glTF lights
+//! in photometric units, a model in millimetres lit by a 1 W point) shows nothing at
+//! exposure 0. Once per scene, on the first snapshot that carries light, the viewer checks
+//! the displayed radiance and, if the scene is that dark, sets the exposure so that it is
+//! seen, and says so. A scene that is visible at exposure 0 (the Cornell box and every
+//! model with its own emitters) keeps 0, and an exposure the user chose (`--exposure`, the
+//! slider) is never changed.
+
+use nusselt_core::render::image::dark_exposure_stops;
+
+/// The state of the automatic exposure for the scene on screen.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AutoExposure {
+    /// Waiting for the first snapshot with light of a scene whose exposure nobody chose.
+    pub armed: bool,
+    /// The exposure (stops) set automatically, while it is still what the panel shows.
+    pub applied: Option<f32>,
+}
+
+impl AutoExposure {
+    /// At start: armed unless an exposure was given.
+    pub fn new(exposure_stops: f32) -> Self {
+        Self {
+            armed: exposure_stops == 0.0,
+            applied: None,
+        }
+    }
+
+    /// A new scene: an automatic exposure of the last one goes back to 0, and the new
+    /// scene is checked unless the user set the exposure.
+    pub fn on_new_scene(&mut self, exposure_stops: &mut f32) {
+        if self.applied == Some(*exposure_stops) {
+            *exposure_stops = 0.0;
+        }
+        self.applied = None;
+        self.armed = *exposure_stops == 0.0;
+    }
+
+    /// A snapshot's displayed radiance per vertex: when armed and it carries light, the
+    /// exposure is decided (returned when changed, and then written to `exposure_stops`).
+    pub fn on_snapshot(&mut self, displayed: &[[f32; 3]], exposure_stops: &mut f32) -> Option<f32> {
+        if !self.armed {
+            return None;
+        }
+        let stops = dark_scene_stops(displayed)?;
+        self.armed = false;
+        if stops == 0.0 {
+            return None;
+        }
+        *exposure_stops = stops;
+        self.applied = Some(stops);
+        Some(stops)
+    }
+}
+
+/// [`dark_exposure_stops`] of the displayed radiance per vertex.
+pub fn dark_scene_stops(displayed: &[[f32; 3]]) -> Option<f32> {
+    let lum: Vec<f64> = displayed
+        .iter()
+        .map(|c| f64::from(0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]))
+        .collect();
+    dark_exposure_stops(lum).map(|s| s as f32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nusselt_core::render::image::TARGET_LUMINANCE as TARGET;
+
+    #[test]
+    fn a_visible_scene_keeps_exposure_zero() {
+        let lit = vec![[0.3, 0.3, 0.3]; 100];
+        assert_eq!(dark_scene_stops(&lit), Some(0.0));
+        let mut e = 0.0;
+        let mut auto = AutoExposure::new(0.0);
+        assert_eq!(auto.on_snapshot(&lit, &mut e), None);
+        assert_eq!(e, 0.0);
+        assert!(!auto.armed);
+    }
+
+    /// 1/256 of the target: 8 stops; 1/100: log2(100) = 6.64 → 6.5 (half stops, rounded
+    /// down so the brightest stay in range).
+    #[test]
+    fn a_dark_scene_is_brought_to_the_target() {
+        assert_eq!(
+            dark_scene_stops(&vec![[TARGET as f32 / 256.0; 3]; 50]),
+            Some(8.0)
+        );
+        assert_eq!(
+            dark_scene_stops(&vec![[0.01 * TARGET as f32; 3]; 50]),
+            Some(6.5)
+        );
+        // Darker than the slider reaches: its end.
+        assert_eq!(dark_scene_stops(&vec![[1e-9; 3]; 50]), Some(8.0));
+    }
+
+    #[test]
+    fn nothing_lit_waits_and_a_chosen_exposure_is_kept() {
+        let mut e = 0.0;
+        let mut auto = AutoExposure::new(0.0);
+        assert_eq!(auto.on_snapshot(&[[0.0; 3]; 10], &mut e), None);
+        assert!(auto.armed, "still waiting for light");
+        assert_eq!(auto.on_snapshot(&[[0.001; 3]; 10], &mut e), Some(8.0));
+        assert_eq!(e, 8.0);
+        // The next scene starts from 0 again, and is visible.
+        auto.on_new_scene(&mut e);
+        assert_eq!(e, 0.0);
+        assert!(auto.armed);
+        // A user's exposure is never touched.
+        let mut chosen = -1.0;
+        let mut auto = AutoExposure::new(chosen);
+        assert_eq!(auto.on_snapshot(&[[0.001; 3]; 10], &mut chosen), None);
+        assert_eq!(chosen, -1.0);
+    }
+}
