@@ -125,7 +125,7 @@ pub fn element_size_for_excess(scene: &Scene, extra: f64) -> f64 {
         .filter(|a| a.is_finite() && *a > 0.0)
         .collect();
     let diag = scene.bounds().diagonal();
-    if weighted.is_empty() || !(diag > 0.0) {
+    if weighted.is_empty() || diag.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return 1.0;
     }
     let excess = |s: f64| -> f64 {

@@ -336,6 +336,48 @@ pub fn relative_rms(image: &Image, reference: &Image, mask: &[bool]) -> Result<f
     Ok(if den > 0.0 { (num / den).sqrt() } else { 0.0 })
 }
 
+/// Luminance (linear) below which, at the 95th percentile, an image or a view counts as
+/// dark: 0.01 is sRGB 25/255, a nearly black screen.
+pub const DARK_LUMINANCE: f64 = 0.01;
+
+/// Luminance a dark image's 95th percentile is brought to (sRGB 188/255).
+pub const TARGET_LUMINANCE: f64 = 0.5;
+
+/// The exposure in stops that a scene needs to be seen, from its luminances (pixels or
+/// vertices): `None` when nothing is lit; 0 when the 95th percentile is at least
+/// [`DARK_LUMINANCE`]; else what brings it (or, with fewer than 1 in 20 lit, the brightest)
+/// to [`TARGET_LUMINANCE`], in half stops rounded down, at most 8. Weak lights for the
+/// scene's size (glTF lights in photometric units, a millimetre model lit by a 1 W point)
+/// otherwise give a black first view.
+pub fn dark_exposure_stops(mut luminance: Vec<f64>) -> Option<f64> {
+    luminance.retain(|l| l.is_finite());
+    let max = luminance.iter().copied().fold(0.0, f64::max);
+    if max <= 0.0 {
+        return None;
+    }
+    let k = ((luminance.len() as f64 * 0.95) as usize).min(luminance.len() - 1);
+    let p95 = *luminance.select_nth_unstable_by(k, f64::total_cmp).1;
+    if p95 >= DARK_LUMINANCE {
+        return Some(0.0);
+    }
+    let level = if p95 > 0.0 { p95 } else { max };
+    Some(
+        ((TARGET_LUMINANCE / level).log2() * 2.0)
+            .floor()
+            .clamp(0.0, 16.0)
+            / 2.0,
+    )
+}
+
+/// Relative luminance (Rec. 709) of each pixel.
+pub fn luminance(image: &Image) -> Vec<f64> {
+    image
+        .pixels
+        .iter()
+        .map(|p| 0.2126 * p.x + 0.7152 * p.y + 0.0722 * p.z)
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -495,46 +537,4 @@ mod tests {
         lin.save(&e, 1.0).expect("exr");
         assert_eq!(std::fs::read_dir(dir.path()).expect("dir").count(), 3);
     }
-}
-
-/// Luminance (linear) below which, at the 95th percentile, an image or a view counts as
-/// dark: 0.01 is sRGB 25/255, a nearly black screen.
-pub const DARK_LUMINANCE: f64 = 0.01;
-
-/// Luminance a dark image's 95th percentile is brought to (sRGB 188/255).
-pub const TARGET_LUMINANCE: f64 = 0.5;
-
-/// The exposure in stops that a scene needs to be seen, from its luminances (pixels or
-/// vertices): `None` when nothing is lit; 0 when the 95th percentile is at least
-/// [`DARK_LUMINANCE`]; else what brings it (or, with fewer than 1 in 20 lit, the brightest)
-/// to [`TARGET_LUMINANCE`], in half stops rounded down, at most 8. Weak lights for the
-/// scene's size (glTF lights in photometric units, a millimetre model lit by a 1 W point)
-/// otherwise give a black first view.
-pub fn dark_exposure_stops(mut luminance: Vec<f64>) -> Option<f64> {
-    luminance.retain(|l| l.is_finite());
-    let max = luminance.iter().copied().fold(0.0, f64::max);
-    if max <= 0.0 {
-        return None;
-    }
-    let k = ((luminance.len() as f64 * 0.95) as usize).min(luminance.len() - 1);
-    let p95 = *luminance.select_nth_unstable_by(k, f64::total_cmp).1;
-    if p95 >= DARK_LUMINANCE {
-        return Some(0.0);
-    }
-    let level = if p95 > 0.0 { p95 } else { max };
-    Some(
-        ((TARGET_LUMINANCE / level).log2() * 2.0)
-            .floor()
-            .clamp(0.0, 16.0)
-            / 2.0,
-    )
-}
-
-/// Relative luminance (Rec. 709) of each pixel.
-pub fn luminance(image: &Image) -> Vec<f64> {
-    image
-        .pixels
-        .iter()
-        .map(|p| 0.2126 * p.x + 0.7152 * p.y + 0.0722 * p.z)
-        .collect()
 }
