@@ -142,13 +142,16 @@ impl Materials {
         } else {
             DVec3::new(f[0], f[1], f[2]).map(clamp_reflectance)
         };
+        // A file Nusselt exported: its own Kd and Ke, not the unlit base colour 1.
+        let own = nusselt_extras(m);
+        let reflectance = own.map_or(reflectance, |o| o.reflectance.map(clamp_reflectance));
         let name = m
             .name()
             .map_or_else(|| format!("material {i}"), str::to_string);
         self.list.push(Material {
             name: unique_name(&self.list, name),
             reflectance,
-            emission: emission(src, m, &at, warnings),
+            emission: own.map_or_else(|| emission(src, m, &at, warnings), |o| o.emission),
             surface: if glass {
                 Surface::Glass { ior }
             } else {
@@ -205,6 +208,34 @@ impl Materials {
 }
 
 /// `emissiveFactor × emissiveStrength`, times the emissive texture's mean colour.
+/// The `Kd`/`Ke` that Nusselt's exporter writes in a material's `extras.nusselt`
+/// ([`crate::export::gltf`]): a baked, unlit material's base colour is 1, not the surface's.
+#[derive(Clone, Copy, Debug)]
+struct OwnMaterial {
+    reflectance: Rgb,
+    emission: Rgb,
+}
+
+fn nusselt_extras(m: &::gltf::Material) -> Option<OwnMaterial> {
+    #[derive(serde::Deserialize)]
+    struct Own {
+        reflectance: [f64; 3],
+        emission: [f64; 3],
+    }
+    #[derive(serde::Deserialize)]
+    struct Extras {
+        nusselt: Own,
+    }
+    let raw = m.extras().as_ref()?;
+    let own = serde_json::from_str::<Extras>(raw.get()).ok()?.nusselt;
+    let own = OwnMaterial {
+        reflectance: Rgb::from_array(own.reflectance),
+        emission: Rgb::from_array(own.emission),
+    };
+    (own.reflectance.is_finite() && own.emission.is_finite() && own.emission.min_element() >= 0.0)
+        .then_some(own)
+}
+
 fn emission(src: &Source, m: &::gltf::Material, at: &str, warnings: &mut Vec<String>) -> Rgb {
     let strength = m.emissive_strength().map_or(1.0, f64::from);
     let e = Rgb::from_array(m.emissive_factor().map(f64::from)) * strength;
