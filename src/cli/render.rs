@@ -131,8 +131,8 @@ pub struct RenderArgs {
     /// Leave out the ambient term (shown by default while unconverged).
     #[arg(long)]
     pub no_ambient: bool,
-    /// PNG exposure multiplier (default 1, or, when the image is nearly black at 1 —
-    /// weak lights for the scene's size — the power of √2 that shows it, printed).
+    /// PNG exposure multiplier (default 1, or, when the image is nearly black or white at 1
+    /// — lights weak or strong for the scene's size — the power of √2 that shows it, printed).
     #[arg(long, allow_negative_numbers = true)]
     pub exposure: Option<f64>,
     /// Reference image (PFM) to measure the image error against.
@@ -417,10 +417,15 @@ fn render(args: &RenderArgs) -> Result<()> {
         Some(e) => e,
         None => {
             let stops =
-                render::image::dark_exposure_stops(render::image::luminance(&image)).unwrap_or(0.0);
-            if stops > 0.0 && !args.quiet && !args.json {
+                render::image::auto_exposure_stops(render::image::luminance(&image)).unwrap_or(0.0);
+            if stops != 0.0 && !args.quiet && !args.json {
+                let (look, lights) = if stops > 0.0 {
+                    ("black", "weak")
+                } else {
+                    ("white", "strong")
+                };
                 eprintln!(
-                    "the image is nearly black at exposure 1 (lights weak for the scene's size): PNG and glTF colours at exposure {:.4} (+{stops} stops; --exposure to choose)",
+                    "the image is nearly {look} at exposure 1 (lights {lights} for the scene's size): PNG and glTF colours at exposure {:.4} ({stops:+} stops; --exposure to choose)",
                     stops.exp2()
                 );
             }

@@ -285,7 +285,9 @@ impl ViewerApp {
             self.message(
                 false,
                 format!(
-                    "the scene is nearly black at exposure 0 (its lights are weak for its size): exposure set to +{stops} stops (Display; --exposure to choose)"
+                    "the scene is nearly {} at exposure 0 (its lights are {} for its size): exposure set to {stops:+} stops (Display; --exposure to choose)",
+                    if stops > 0.0 { "black" } else { "white" },
+                    if stops > 0.0 { "weak" } else { "strong" }
                 ),
             );
         }

@@ -1,12 +1,13 @@
-//! A first view that is not black ([`dark_exposure_stops`]): a scene whose lights are weak for its size (glTF lights
-//! in photometric units, a model in millimetres lit by a 1 W point) shows nothing at
-//! exposure 0. Once per scene, on the first snapshot that carries light, the viewer checks
-//! the displayed radiance and, if the scene is that dark, sets the exposure so that it is
-//! seen, and says so. A scene that is visible at exposure 0 (the Cornell box and every
-//! model with its own emitters) keeps 0, and an exposure the user chose (`--exposure`, the
-//! slider) is never changed.
+//! A first view that is neither black nor white ([`auto_exposure_stops`]): a scene whose
+//! lights are weak for its size (glTF lights in photometric units, a model in millimetres
+//! lit by a 1 W point) shows nothing at exposure 0, one lit by a strong light (`Ke` 1000
+//! behind a door) shows white. Once per scene, on the first snapshot that carries light, the
+//! viewer checks the displayed radiance and, if the scene is that dark or bright, sets the
+//! exposure so that it is seen, and says so. A scene that is visible at exposure 0 (the
+//! Cornell box, most models with their own emitters) keeps 0, and an exposure the user
+//! chose (`--exposure`, the slider) is never changed.
 
-use nusselt_core::render::image::dark_exposure_stops;
+use nusselt_core::render::image::auto_exposure_stops;
 
 /// The state of the automatic exposure for the scene on screen.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -42,7 +43,7 @@ impl AutoExposure {
         if !self.armed {
             return None;
         }
-        let stops = dark_scene_stops(displayed)?;
+        let stops = auto_scene_stops(displayed)?;
         self.armed = false;
         if stops == 0.0 {
             return None;
@@ -53,13 +54,13 @@ impl AutoExposure {
     }
 }
 
-/// [`dark_exposure_stops`] of the displayed radiance per vertex.
-pub fn dark_scene_stops(displayed: &[[f32; 3]]) -> Option<f32> {
+/// [`auto_exposure_stops`] of the displayed radiance per vertex.
+pub fn auto_scene_stops(displayed: &[[f32; 3]]) -> Option<f32> {
     let lum: Vec<f64> = displayed
         .iter()
         .map(|c| f64::from(0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]))
         .collect();
-    dark_exposure_stops(lum).map(|s| s as f32)
+    auto_exposure_stops(lum).map(|s| s as f32)
 }
 
 #[cfg(test)]
@@ -70,7 +71,7 @@ mod tests {
     #[test]
     fn a_visible_scene_keeps_exposure_zero() {
         let lit = vec![[0.3, 0.3, 0.3]; 100];
-        assert_eq!(dark_scene_stops(&lit), Some(0.0));
+        assert_eq!(auto_scene_stops(&lit), Some(0.0));
         let mut e = 0.0;
         let mut auto = AutoExposure::new(0.0);
         assert_eq!(auto.on_snapshot(&lit, &mut e), None);
@@ -83,15 +84,25 @@ mod tests {
     #[test]
     fn a_dark_scene_is_brought_to_the_target() {
         assert_eq!(
-            dark_scene_stops(&vec![[TARGET as f32 / 256.0; 3]; 50]),
+            auto_scene_stops(&vec![[TARGET as f32 / 256.0; 3]; 50]),
             Some(8.0)
         );
         assert_eq!(
-            dark_scene_stops(&vec![[0.01 * TARGET as f32; 3]; 50]),
+            auto_scene_stops(&vec![[0.01 * TARGET as f32; 3]; 50]),
             Some(6.5)
         );
         // Darker than the slider reaches: its end.
-        assert_eq!(dark_scene_stops(&vec![[1e-9; 3]; 50]), Some(8.0));
+        assert_eq!(auto_scene_stops(&vec![[1e-9; 3]; 50]), Some(8.0));
+    }
+
+    /// A room lit through a door by `Ke` 1000 shows white at 0: brought down to the target.
+    #[test]
+    fn a_burnt_out_scene_is_brought_down() {
+        assert_eq!(
+            auto_scene_stops(&vec![[64.0 * TARGET as f32; 3]; 50]),
+            Some(-6.0)
+        );
+        assert_eq!(auto_scene_stops(&vec![[1e9; 3]; 50]), Some(-8.0));
     }
 
     #[test]

@@ -343,13 +343,17 @@ pub const DARK_LUMINANCE: f64 = 0.01;
 /// Luminance a dark image's 95th percentile is brought to (sRGB 188/255).
 pub const TARGET_LUMINANCE: f64 = 0.5;
 
+/// Luminance above which, at the 95th percentile, an image or a view counts as burnt out
+/// (most of it white at exposure 1: a light of `Ke` 1000 behind a door, lighting a room).
+pub const BRIGHT_LUMINANCE: f64 = 2.0;
+
 /// The exposure in stops that a scene needs to be seen, from its luminances (pixels or
-/// vertices): `None` when nothing is lit; 0 when the 95th percentile is at least
-/// [`DARK_LUMINANCE`]; else what brings it (or, with fewer than 1 in 20 lit, the brightest)
-/// to [`TARGET_LUMINANCE`], in half stops rounded down, at most 8. Weak lights for the
-/// scene's size (glTF lights in photometric units, a millimetre model lit by a 1 W point)
-/// otherwise give a black first view.
-pub fn dark_exposure_stops(mut luminance: Vec<f64>) -> Option<f64> {
+/// vertices): `None` when nothing is lit; 0 when the 95th percentile is between
+/// [`DARK_LUMINANCE`] and [`BRIGHT_LUMINANCE`]; else what brings it (or, with fewer than 1
+/// in 20 lit, the brightest) to [`TARGET_LUMINANCE`], in half stops towards 0, within ±8.
+/// Weak lights for the scene's size (glTF lights in photometric units, a millimetre model
+/// lit by a 1 W point) otherwise give a black first view, strong ones a white one.
+pub fn auto_exposure_stops(mut luminance: Vec<f64>) -> Option<f64> {
     luminance.retain(|l| l.is_finite());
     let max = luminance.iter().copied().fold(0.0, f64::max);
     if max <= 0.0 {
@@ -357,14 +361,14 @@ pub fn dark_exposure_stops(mut luminance: Vec<f64>) -> Option<f64> {
     }
     let k = ((luminance.len() as f64 * 0.95) as usize).min(luminance.len() - 1);
     let p95 = *luminance.select_nth_unstable_by(k, f64::total_cmp).1;
-    if p95 >= DARK_LUMINANCE {
+    if (DARK_LUMINANCE..=BRIGHT_LUMINANCE).contains(&p95) {
         return Some(0.0);
     }
     let level = if p95 > 0.0 { p95 } else { max };
     Some(
         ((TARGET_LUMINANCE / level).log2() * 2.0)
-            .floor()
-            .clamp(0.0, 16.0)
+            .trunc()
+            .clamp(-16.0, 16.0)
             / 2.0,
     )
 }
