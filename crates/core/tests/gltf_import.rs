@@ -452,6 +452,15 @@ fn photometric_lights_convert_at_683_lumens_per_watt() {
         "{:?}",
         s.warnings
     );
+    // The same lights given by flags (`--point X,Y,Z,R,G,B`, `--sun X,Y,Z,R,G,B`) are the
+    // same lights: 683 cd of orange at (0, 3, 0) is 1 W/sr, 683 lux from +z is 1 W/m².
+    let by_flags = [
+        Light::parse_point("0,3,0,1,0.5,0").expect("point"),
+        Light::parse_sun("0,0,1,1,1,1").expect("sun"),
+    ];
+    for (flag, file) in by_flags.iter().zip(&s.lights) {
+        assert_eq!(flag, file, "by flags {flag:?}, from the glTF file {file:?}");
+    }
 }
 
 /// A 2 × 2 PNG, top row red and bottom row blue, on a unit quad with glTF's uv (0, 0) at the
