@@ -234,29 +234,35 @@ impl<'a> PathTracer<'a> {
     /// Whether a camera ray's first hit is a light or the lit front of a surface (direct
     /// light from one of `samples` light samples arrives): the score of a candidate view.
     pub fn first_hit_is_lit(&self, ray: &Ray, samples: u32, rng: &mut Rng) -> bool {
-        let Some(hit) = self.bvh.closest_hit(ray, 0.0, f64::INFINITY) else {
-            return false;
-        };
+        self.first_lit_face(ray, samples, rng).is_some()
+    }
+
+    /// The input face the ray's first hit lies on, when that point is lit
+    /// ([`first_hit_is_lit`](Self::first_hit_is_lit)).
+    pub fn first_lit_face(&self, ray: &Ray, samples: u32, rng: &mut Rng) -> Option<usize> {
+        let hit = self.bvh.closest_hit(ray, 0.0, f64::INFINITY)?;
         let (face, mut n) = self.tri_face[hit.id as usize];
         if !hit.front {
             if !self.scene.two_sided {
-                return false;
+                return None;
             }
             n = -n;
         }
         if self.scene.materials[self.scene.faces[face].material.0 as usize].is_emitter() {
-            return true;
+            return Some(face);
         }
         let x = ray.at(hit.t);
-        (0..samples).any(|_| {
-            let d = cosine_hemisphere(n, rng.next_f64(), rng.next_f64());
-            let sky = self.sky.max_element() > 0.0
-                && self
-                    .bvh
-                    .closest_hit(&Ray::new(x + n * self.epsilon, d), 0.0, f64::INFINITY)
-                    .is_none();
-            sky || self.direct(x, n, rng).max_element() > 0.0
-        })
+        (0..samples)
+            .any(|_| {
+                let d = cosine_hemisphere(n, rng.next_f64(), rng.next_f64());
+                let sky = self.sky.max_element() > 0.0
+                    && self
+                        .bvh
+                        .closest_hit(&Ray::new(x + n * self.epsilon, d), 0.0, f64::INFINITY)
+                        .is_none();
+                sky || self.direct(x, n, rng).max_element() > 0.0
+            })
+            .then_some(face)
     }
 
     /// Direct irradiance term `(1/π) ∫ Le cosθ dω` at `x` (to be multiplied by ρ): one

@@ -4,9 +4,10 @@
 //! towards +z, so a fixed view from −z sees the outside of its back wall (black, culled in
 //! the viewer). Instead, candidate views are scored by how many of a few hundred rays
 //! through them hit a light or the lit front of a surface (one light sample each, through
-//! the path tracer's own light sampling), and the best is taken: from outside along the six
-//! axes and eight diagonals, framing the bounds, and, for a closed room that no outside
-//! view sees into, from its centre along the horizontal axes and diagonals.
+//! the path tracer's own light sampling), scaled down when they land on fewer than a dozen
+//! faces, and the best is taken: from outside along the six axes and eight diagonals,
+//! framing the bounds, and, for a closed room or building whose outside shows only a few
+//! walls, from near its upper corners and from its centre.
 
 use glam::DVec3;
 
@@ -18,8 +19,9 @@ use crate::scene::{Camera, Scene};
 const GRID_X: u32 = 24;
 const GRID_Y: u32 = 18;
 
-/// Inside views are tried only when no outside view has this fraction of its rays on lit
-/// surface: a model seen whole from outside is the more natural first view.
+/// Inside views are tried only when no outside view has this score and shows
+/// [`VARIED_FACES`] lit faces: a model seen whole from outside is the more natural first
+/// view, unless all that is seen from outside is a few walls.
 const OUTSIDE_ENOUGH: f64 = 0.05;
 
 /// The scene's own camera, or [`choose_camera`].
@@ -32,24 +34,32 @@ pub fn default_camera(scene: &Scene) -> Camera {
 pub fn choose_camera(scene: &Scene) -> Camera {
     let b = scene.bounds();
     let tracer = PathTracer::new(scene);
-    let mut best: Option<(f64, Camera)> = None;
+    let mut best: Option<(f64, bool, Camera)> = None;
     for (camera, inside) in candidates(b.min, b.max) {
-        if inside && best.is_some_and(|(s, _)| s >= OUTSIDE_ENOUGH) {
+        if inside && best.is_some_and(|(s, varied, _)| varied && s >= OUTSIDE_ENOUGH) {
             break;
         }
-        let score = score(&tracer, &camera);
-        if best.is_none_or(|(s, _)| score > s + TIE) {
-            best = Some((score, camera));
+        let (score, varied) = score(&tracer, &camera);
+        if best.is_none_or(|(s, _, _)| score > s + TIE) {
+            best = Some((score, varied, camera));
         }
     }
-    best.map(|(_, c)| c)
+    best.map(|(_, _, c)| c)
         .unwrap_or_else(|| Camera::framing(b.min, b.max))
 }
 
-/// Fraction of the grid's rays whose first hit is lit.
-fn score(tracer: &PathTracer, camera: &Camera) -> f64 {
+/// Distinct lit faces a view must show for its score to count in full: fewer, and it is
+/// scaled down in proportion. The outside of a closed building under the sky (the
+/// Dabrović atrium, the jeweller's shop) is one lit wall filling the frame; the view
+/// inside, of arches, columns and floor, is the one a user wants first.
+const VARIED_FACES: usize = 12;
+
+/// Fraction of the grid's rays whose first hit is lit, times the share of
+/// [`VARIED_FACES`] distinct faces they land on; and whether they land on that many.
+fn score(tracer: &PathTracer, camera: &Camera) -> (f64, bool) {
     let mut rng = Rng::new(0x5eed, 7);
     let mut lit = 0u32;
+    let mut faces = std::collections::BTreeSet::new();
     for j in 0..GRID_Y {
         for i in 0..GRID_X {
             let dir = camera.ray_dir(
@@ -58,12 +68,17 @@ fn score(tracer: &PathTracer, camera: &Camera) -> f64 {
                 256,
                 256,
             );
-            if tracer.first_hit_is_lit(&Ray::new(camera.eye, dir), 2, &mut rng) {
+            if let Some(face) = tracer.first_lit_face(&Ray::new(camera.eye, dir), 2, &mut rng) {
                 lit += 1;
+                faces.insert(face);
             }
         }
     }
-    lit as f64 / (GRID_X * GRID_Y) as f64
+    let variety = (faces.len() as f64 / VARIED_FACES as f64).min(1.0);
+    (
+        lit as f64 / (GRID_X * GRID_Y) as f64 * variety,
+        faces.len() >= VARIED_FACES,
+    )
 }
 
 /// A later candidate must beat the best so far by this fraction of rays (sampling noise):
