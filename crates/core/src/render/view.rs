@@ -39,7 +39,11 @@ pub fn choose_camera(scene: &Scene) -> Camera {
         if inside && best.is_some_and(|(s, varied, _)| varied && s >= OUTSIDE_ENOUGH) {
             break;
         }
-        let (score, varied) = score(&tracer, &camera);
+        let (lit, faces) = score(&tracer, &camera);
+        let (score, varied) = (
+            lit * (faces as f64 / VARIED_FACES as f64).min(1.0),
+            faces >= VARIED_FACES,
+        );
         if best.is_none_or(|(s, _, _)| score > s + TIE) {
             best = Some((score, varied, camera));
         }
@@ -54,9 +58,9 @@ pub fn choose_camera(scene: &Scene) -> Camera {
 /// inside, of arches, columns and floor, is the one a user wants first.
 const VARIED_FACES: usize = 12;
 
-/// Fraction of the grid's rays whose first hit is lit, times the share of
-/// [`VARIED_FACES`] distinct faces they land on; and whether they land on that many.
-fn score(tracer: &PathTracer, camera: &Camera) -> (f64, bool) {
+/// Fraction of the grid's rays whose first hit is lit, and the number of distinct faces
+/// those land on.
+fn score(tracer: &PathTracer, camera: &Camera) -> (f64, usize) {
     let mut rng = Rng::new(0x5eed, 7);
     let mut lit = 0u32;
     let mut faces = std::collections::BTreeSet::new();
@@ -74,11 +78,7 @@ fn score(tracer: &PathTracer, camera: &Camera) -> (f64, bool) {
             }
         }
     }
-    let variety = (faces.len() as f64 / VARIED_FACES as f64).min(1.0);
-    (
-        lit as f64 / (GRID_X * GRID_Y) as f64 * variety,
-        faces.len() >= VARIED_FACES,
-    )
+    (lit as f64 / (GRID_X * GRID_Y) as f64, faces.len())
 }
 
 /// A later candidate must beat the best so far by this fraction of rays (sampling noise):
@@ -257,7 +257,8 @@ mod tests {
                 if open_pz { "+" } else { "-" }
             );
             let tracer = PathTracer::new(&scene);
-            assert!(score(&tracer, &cam) > 0.3, "{}", score(&tracer, &cam));
+            let (lit, _) = score(&tracer, &cam);
+            assert!(lit > 0.3, "{lit}");
         }
     }
 
