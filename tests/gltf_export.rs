@@ -331,3 +331,80 @@ fn viewer_snapshot_export_validates() {
     assert_eq!(triangles, stats.triangles);
     check_values(&prims, 2.0);
 }
+
+/// The viewer's export of a textured model (the Khronos BoxTextured sample, 12 triangles and
+/// a PNG): valid, with TEXCOORD_0 on its primitive and the map embedded in the `albedo`
+/// variant, texture coordinates within the model's own range.
+#[test]
+fn viewer_export_of_a_textured_model_keeps_its_map() {
+    use nusselt_core::scene::{LoadOptions, Scene};
+    use nusselt_viewer::solver_thread::{SolverHandle, ThreadConfig};
+    let model = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/models/gltf/BoxTextured/BoxTextured.gltf");
+    let mut scene = Scene::load(&model, &LoadOptions::default()).unwrap_or_else(|e| {
+        panic!(
+            "{} (the shared models must be present): {e}",
+            model.display()
+        )
+    });
+    // Unlit, as the file comes: the sky and sun that `view` adds.
+    assert!(scene.add_default_lights().is_some());
+    let config = ThreadConfig {
+        max_shots: Some(5),
+        ..Default::default()
+    };
+    let mut h = SolverHandle::spawn(scene, config, Box::new(|| {})).expect("spawn");
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let snapshot = loop {
+        if let Some(s) = h.take_snapshot().filter(|s| s.stats.limit_reached) {
+            break s;
+        }
+        assert!(Instant::now() < deadline, "no snapshot after 5 shots");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    h.shutdown(Duration::from_secs(30));
+    assert!(
+        snapshot.geometry.textures.is_some(),
+        "the model is textured"
+    );
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("box.glb");
+    nusselt_viewer::export_gltf::write_snapshot_gltf(&snapshot, &path, true, 1.0).expect("export");
+    validate(&path);
+    let (doc, buffers, images) = gltf::import(&path).expect("the gltf crate reads the export");
+    assert_eq!(images.len(), 1, "one embedded map");
+    // The model's own texture-coordinate range (its accessor's min/max: 0–6 by 0–1, the
+    // logo repeated), which the export's must keep (v flipped on import, back on export).
+    let (src, src_buffers, _) = gltf::import(&model).expect("the model reads");
+    let mut lo = [f32::INFINITY; 2];
+    let mut hi = [f32::NEG_INFINITY; 2];
+    for p in src
+        .meshes()
+        .flat_map(|m| m.primitives().collect::<Vec<_>>())
+    {
+        let r = p.reader(|b| Some(&src_buffers[b.index()]));
+        for uv in r.read_tex_coords(0).expect("the model has uvs").into_f32() {
+            for k in 0..2 {
+                lo[k] = lo[k].min(uv[k]);
+                hi[k] = hi[k].max(uv[k]);
+            }
+        }
+    }
+    let mut textured = 0;
+    for mesh in doc.meshes() {
+        for p in mesh.primitives() {
+            let r = p.reader(|b| Some(&buffers[b.index()]));
+            if let Some(uv) = r.read_tex_coords(0) {
+                textured += 1;
+                for [u, v] in uv.into_f32() {
+                    assert!(
+                        (lo[0] - 1e-4..=hi[0] + 1e-4).contains(&u)
+                            && (lo[1] - 1e-4..=hi[1] + 1e-4).contains(&v),
+                        "uv {u} {v} outside the model's {lo:?}..{hi:?}"
+                    );
+                }
+            }
+        }
+    }
+    assert_eq!(textured, 1, "the box's primitive carries TEXCOORD_0");
+}

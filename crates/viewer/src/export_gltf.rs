@@ -6,9 +6,9 @@
 //! area-weighted mean of the triangles' normals around each mesh vertex (a triangle's own
 //! where they disagree: the two sides of a two-sided face). Irradiance per vertex is
 //! `π (L − E)/ρ` with `ρ` = `Kd` × the texture's mean over the vertex's elements (what the
-//! shader divides the texel by), 0 in a channel that reflects nothing. Known limit: the
-//! snapshot carries the GPU's texture layers, not the scene's maps, so the viewer's export
-//! embeds no texture (the CLI's `render --export-gltf` does).
+//! shader divides the texel by), 0 in a channel that reflects nothing. A textured scene's
+//! vertices keep their texture coordinates and its maps go into the `albedo` variant, as
+//! with `render --export-gltf`.
 
 use std::path::Path;
 
@@ -54,7 +54,11 @@ pub fn baked_mesh(s: &Snapshot, with_ambient: bool) -> BakedMesh {
     let g = &s.geometry;
     let (mean_normal, own) = normals(s);
     let ambient = if with_ambient { 1.0 } else { 0.0 };
-    let mut out = BakedMesh::default();
+    let mut out = BakedMesh {
+        // The texture coordinates of the drawn vertices (OBJ convention, as the export's).
+        uvs: g.textures.as_ref().map(|_| Vec::new()),
+        ..BakedMesh::default()
+    };
     for (t, tri) in g.indices.chunks_exact(3).enumerate() {
         let material = g.patch_material[g.patch[tri[0] as usize] as usize];
         let m = &s.materials[material as usize];
@@ -82,6 +86,9 @@ pub fn baked_mesh(s: &Snapshot, with_ambient: bool) -> BakedMesh {
             out.normals.push(normal.as_vec3().to_array());
             out.radiance.push(radiance);
             out.irradiance.push(irradiance);
+            if let (Some(uvs), Some(x)) = (out.uvs.as_mut(), g.textures.as_ref()) {
+                uvs.push(x.uv[d]);
+            }
         }
         out.triangle_material.push(material);
     }
@@ -99,7 +106,7 @@ pub fn write_snapshot_gltf(
     let input = GltfInput {
         mesh: &mesh,
         materials: &s.materials,
-        textures: &[],
+        textures: &s.scene_textures,
         exposure: f64::from(exposure),
         name: &s.scene_name,
     };

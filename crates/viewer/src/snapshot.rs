@@ -361,6 +361,8 @@ pub struct Snapshot {
     pub scene_rev: u64,
     /// The scene's diffuse maps, for the GPU's texture array; `None` when it has none.
     pub textures: Option<Arc<crate::textures::TextureLayers>>,
+    /// The scene's texture maps as loaded (what `materials`' map ids index), for exports.
+    pub scene_textures: Vec<Arc<nusselt_core::scene::Texture>>,
     /// The scene's own camera, or one that frames it.
     pub scene_camera: Camera,
     pub two_sided: bool,

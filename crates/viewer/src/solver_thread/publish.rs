@@ -93,6 +93,7 @@ impl Worker {
             scene_source: problem.scene.source.clone(),
             scene_rev: self.scene_rev,
             textures: self.textures.clone(),
+            scene_textures: problem.scene.textures.clone(),
             scene_camera: self.scene_camera,
             two_sided: problem.scene.two_sided,
             method: problem.config.method,
