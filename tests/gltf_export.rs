@@ -294,13 +294,37 @@ fn a_bad_export_path_fails_before_any_work() {
     }
 }
 
+/// The viewer's solver thread on `scene`, run until its step limit (`config.max_shots`):
+/// the snapshot it publishes then.
+fn snapshot_at_limit(
+    scene: nusselt_core::scene::Scene,
+    config: nusselt_viewer::solver_thread::ThreadConfig,
+) -> std::sync::Arc<nusselt_viewer::snapshot::Snapshot> {
+    let limit = config.max_shots;
+    let mut h = nusselt_viewer::solver_thread::SolverHandle::spawn(scene, config, Box::new(|| {}))
+        .expect("spawn");
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let snapshot = loop {
+        if let Some(s) = h.take_snapshot().filter(|s| s.stats.limit_reached) {
+            break s;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "no snapshot after {limit:?} shots"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    h.shutdown(Duration::from_secs(30));
+    snapshot
+}
+
 /// The viewer's "Export lit mesh (glTF)" on a snapshot of a short solve: valid, and the same
 /// identities hold (radiance with the ambient term, at exposure 2).
 #[test]
 fn viewer_snapshot_export_validates() {
     use nusselt_core::scene::{LoadOptions, Scene};
     use nusselt_core::solver::SolverConfig;
-    use nusselt_viewer::solver_thread::{SolverHandle, ThreadConfig};
+    use nusselt_viewer::solver_thread::ThreadConfig;
     let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
     let config = ThreadConfig {
         solver: SolverConfig {
@@ -311,16 +335,7 @@ fn viewer_snapshot_export_validates() {
         max_shots: Some(20),
         ..Default::default()
     };
-    let mut h = SolverHandle::spawn(scene, config, Box::new(|| {})).expect("spawn");
-    let deadline = Instant::now() + Duration::from_secs(120);
-    let snapshot = loop {
-        if let Some(s) = h.take_snapshot().filter(|s| s.stats.limit_reached) {
-            break s;
-        }
-        assert!(Instant::now() < deadline, "no snapshot after 20 shots");
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    h.shutdown(Duration::from_secs(30));
+    let snapshot = snapshot_at_limit(scene, config);
     let dir = tempfile::tempdir().expect("tempdir");
     let path = dir.path().join("viewer.glb");
     let stats = nusselt_viewer::export_gltf::write_snapshot_gltf(&snapshot, &path, true, 2.0)
@@ -338,7 +353,7 @@ fn viewer_snapshot_export_validates() {
 #[test]
 fn viewer_export_of_a_textured_model_keeps_its_map() {
     use nusselt_core::scene::{LoadOptions, Scene};
-    use nusselt_viewer::solver_thread::{SolverHandle, ThreadConfig};
+    use nusselt_viewer::solver_thread::ThreadConfig;
     let model = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../shared/models/gltf/BoxTextured/BoxTextured.gltf");
     let mut scene = Scene::load(&model, &LoadOptions::default()).unwrap_or_else(|e| {
@@ -353,16 +368,7 @@ fn viewer_export_of_a_textured_model_keeps_its_map() {
         max_shots: Some(5),
         ..Default::default()
     };
-    let mut h = SolverHandle::spawn(scene, config, Box::new(|| {})).expect("spawn");
-    let deadline = Instant::now() + Duration::from_secs(120);
-    let snapshot = loop {
-        if let Some(s) = h.take_snapshot().filter(|s| s.stats.limit_reached) {
-            break s;
-        }
-        assert!(Instant::now() < deadline, "no snapshot after 5 shots");
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    h.shutdown(Duration::from_secs(30));
+    let snapshot = snapshot_at_limit(scene, config);
     assert!(
         snapshot.geometry.textures.is_some(),
         "the model is textured"

@@ -40,12 +40,7 @@ pub fn srgb8(linear: f32, exposure: f32) -> u8 {
 /// `exposure`), and the display triangles.
 pub fn ply_bytes(snapshot: &Snapshot, with_ambient: bool, exposure: f32) -> Vec<u8> {
     let g = &snapshot.geometry;
-    let n = g
-        .source_vertex
-        .iter()
-        .map(|&v| v as usize + 1)
-        .max()
-        .unwrap_or(0);
+    let n = g.display_vertex_count();
     let mut position = vec![[0f32; 3]; n];
     let mut radiance = vec![[0f32; 3]; n];
     let ambient = if with_ambient { 1.0 } else { 0.0 };

@@ -22,12 +22,7 @@ use super::snapshot::Snapshot;
 /// they disagree), and per triangle its own unit normal.
 fn normals(s: &Snapshot) -> (Vec<Option<DVec3>>, Vec<DVec3>) {
     let g = &s.geometry;
-    let n = g
-        .source_vertex
-        .iter()
-        .map(|&v| v as usize + 1)
-        .max()
-        .unwrap_or(0);
+    let n = g.display_vertex_count();
     let mut sum = vec![(DVec3::ZERO, 0.0); n];
     let mut own = Vec::with_capacity(g.indices.len() / 3);
     for t in g.indices.chunks_exact(3) {

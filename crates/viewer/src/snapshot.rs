@@ -104,6 +104,15 @@ fn same_uv(a: [f32; 2], b: [f32; 2]) -> bool {
 }
 
 impl Geometry {
+    /// Number of mesh display vertices the drawn vertices expand ([`Geometry::source_vertex`]).
+    pub fn display_vertex_count(&self) -> usize {
+        self.source_vertex
+            .iter()
+            .map(|&v| v as usize + 1)
+            .max()
+            .unwrap_or(0)
+    }
+
     /// Untextured drawing arrays of a mesh.
     pub fn from_mesh(id: u64, mesh: &Mesh) -> Geometry {
         Self::build(id, mesh, None)
