@@ -24,6 +24,13 @@ fn coarse_config() -> SolverConfig {
     }
 }
 
+/// What the coarse Cornell mesh holds of a memory budget (textures and elements).
+fn coarse_resident_bytes() -> usize {
+    nusselt_core::solver::Problem::new(cornell(), coarse_config())
+        .expect("problem")
+        .resident_bytes()
+}
+
 fn spawn(config: ThreadConfig) -> SolverHandle {
     SolverHandle::spawn(cornell(), config, Box::new(|| {})).expect("spawn")
 }
@@ -164,15 +171,15 @@ fn gauss_seidel_over_the_thread_converges_to_the_shooting_answer() {
     assert!(rel < tolerance, "gauss-seidel vs shooting differ by {rel}");
 }
 
-/// A switch the new solver would refuse leaves the current one running: with a 64 KB
-/// budget the Cornell matrix does not fit, so Gauss-Seidel is refused with an error event
+/// A switch the new solver would refuse leaves the current one running: with 64 KB of
+/// budget beside the mesh the Cornell matrix does not fit, so Gauss-Seidel is refused with an error event
 /// naming the solver and the memory; a bad ω for SOR likewise; shooting goes on (steps
 /// count on from where they were) and converges.
 #[test]
 fn a_refused_switch_keeps_the_solver_and_reports_an_error() {
     let mut h = spawn(ThreadConfig {
         solver: SolverConfig {
-            row_cache_bytes: 64 << 10,
+            memory_bytes: coarse_resident_bytes() + (64 << 10),
             ..coarse_config()
         },
         play: false,

@@ -91,13 +91,16 @@ pub fn meshed(
 ) -> Result<Box<dyn Solver>> {
     let problem = Problem::new(scene.clone(), config)?;
     Ok(match adaptive {
-        Some(tolerance) => nusselt_core::solver::refine::refine_adaptively(
-            problem,
-            SolverKind::Shooting,
-            tolerance,
-            2,
-            1e-4,
-        )?,
+        Some(tolerance) => {
+            nusselt_core::solver::refine::refine_adaptively(
+                problem,
+                SolverKind::Shooting,
+                tolerance,
+                2,
+                1e-4,
+            )?
+            .solver
+        }
         None => SolverKind::Shooting.build(problem)?,
     })
 }

@@ -51,8 +51,10 @@ pub struct RenderArgs {
     /// SOR relaxation factor in (0, 2) (default: estimated from the first sweeps).
     #[arg(long, allow_negative_numbers = true)]
     pub omega: Option<f64>,
-    /// Memory for stored form factors in MiB (default: half of the machine's RAM);
-    /// a gathering or CG matrix that would not fit is refused before any work.
+    /// Memory budget of the whole run in MiB (default: half of the machine's RAM): the
+    /// textures and the mesh (about 1 KiB an element) first, the cached rows, stored matrix
+    /// or links in what is left. A mesh or a gathering/CG matrix that would not fit is
+    /// refused before any work; adaptive refinement stops where the next pass would not fit.
     #[arg(long)]
     pub max_memory: Option<u64>,
     /// Stop when the estimated remaining relative error of every element falls to this
@@ -305,7 +307,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         link_tolerance: args
             .link_tolerance
             .unwrap_or(nusselt_core::solver::DEFAULT_LINK_TOLERANCE),
-        row_cache_bytes: max_memory_bytes(args.max_memory)?,
+        memory_bytes: max_memory_bytes(args.max_memory)?,
         raster: raster_for(method)?,
         discontinuity: args.discontinuity,
     };
@@ -313,13 +315,19 @@ fn render(args: &RenderArgs) -> Result<()> {
     let solve_start = Instant::now();
     let problem = Problem::new(scene, config)?;
     let mut solver = match args.adaptive {
-        Some(tolerance) => nusselt_core::solver::refine::refine_adaptively(
-            problem,
-            kind,
-            tolerance,
-            args.adaptive_passes,
-            args.unshot,
-        )?,
+        Some(tolerance) => {
+            let refined = nusselt_core::solver::refine::refine_adaptively(
+                problem,
+                kind,
+                tolerance,
+                args.adaptive_passes,
+                args.unshot,
+            )?;
+            if let Some(why) = &refined.stopped {
+                eprintln!("note: {why}");
+            }
+            refined.solver
+        }
         None => kind.build(problem)?,
     };
     if !args.quiet && !args.json {
@@ -540,7 +548,6 @@ fn render(args: &RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// `--max-memory` in bytes, or half of the machine's RAM (512 MiB if unknown).
 /// Share of `--seconds` kept for the render after the solve (the vertex pass of a
 /// 263 k-triangle atrium at 256²: 2 s, 7 % of 30 s).
 const RENDER_SHARE: f64 = 0.15;
@@ -551,18 +558,11 @@ fn solve_seconds_within(total: f64, elapsed: f64) -> f64 {
     (total * (1.0 - RENDER_SHARE) - elapsed).max(0.0)
 }
 
-fn max_memory_bytes(mib: Option<u64>) -> Result<usize> {
+/// `--max-memory` in bytes, or [`nusselt_core::budget::default_bytes`].
+pub(super) fn max_memory_bytes(mib: Option<u64>) -> Result<usize> {
     match mib {
         Some(0) => bail!("--max-memory must be at least 1 (MiB)"),
         Some(m) => Ok(usize::try_from(m.saturating_mul(1 << 20)).unwrap_or(usize::MAX)),
-        None => Ok(physical_memory_bytes().map_or(512 << 20, |b| b / 2)),
+        None => Ok(nusselt_core::budget::default_bytes()),
     }
-}
-
-/// Total RAM from /proc/meminfo (Linux); `None` elsewhere.
-fn physical_memory_bytes() -> Option<usize> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
-    let kb: usize = line.split_whitespace().nth(1)?.parse().ok()?;
-    kb.checked_mul(1024)
 }

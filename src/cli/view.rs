@@ -112,6 +112,11 @@ pub struct ViewCmdArgs {
     /// least 1), as the viewer's shot pool does (docs/VIEWER.md measured it).
     #[arg(long)]
     pub solver_threads: Option<usize>,
+    /// Memory budget of the run in MiB (default: half of the machine's RAM), as for
+    /// `render --max-memory`: a mesh or re-mesh that would not fit is refused (the scene on
+    /// screen stays), caches get what the mesh leaves.
+    #[arg(long)]
+    pub max_memory: Option<u64>,
     /// Material edit, as in the edit panel: TARGET:kd=r,g,b[:ke=r,g,b], TARGET a material
     /// name or #PATCH (which is also selected). Repeatable.
     #[arg(long)]
@@ -251,6 +256,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
             super::check_output(flag, p)?;
         }
     }
+    let memory_bytes = super::render::max_memory_bytes(args.max_memory)?;
     // The flags are checked: now the work.
     let scene = scene_args.load()?;
     let automation = Automation {
@@ -288,6 +294,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
             paused: args.paused,
             no_vsync: args.no_vsync,
             solver_threads: args.solver_threads,
+            memory_bytes,
             automation,
         },
     })?;

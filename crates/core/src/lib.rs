@@ -91,6 +91,7 @@
 //! assert!(mesh.patches.len() < mesh.elements.len());
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
+pub mod budget;
 pub mod cases;
 pub mod export;
 pub mod formfactor;

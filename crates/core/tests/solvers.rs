@@ -110,11 +110,9 @@ fn shooting_and_gauss_seidel_agree_per_element() {
 #[test]
 fn a_matrix_that_does_not_fit_is_refused() {
     let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
-    let config = SolverConfig {
-        row_cache_bytes: 1 << 20,
-        ..Default::default()
-    };
-    let problem = Problem::new(scene, config).expect("problem");
+    let mut problem = Problem::new(scene, SolverConfig::default()).expect("problem");
+    // One MiB beside the mesh: far less than the matrix.
+    problem.config.memory_bytes = problem.resident_bytes() + (1 << 20);
     match SolverKind::GaussSeidel.build(problem) {
         Err(e @ SolverError::MatrixTooLarge { .. }) => {
             let text = e.to_string();
@@ -160,7 +158,7 @@ fn switching_solvers_keeps_the_cached_rows() {
     }
     // A refused switch leaves the solver where it was.
     let mut tiny = gs.problem().config.clone();
-    tiny.row_cache_bytes = 1;
+    tiny.memory_bytes = gs.problem().resident_bytes() + 1;
     let (mut problem, rows) = gs.into_parts();
     problem.config = tiny;
     assert!(SolverKind::Cg.check(&problem).is_err());
@@ -227,4 +225,55 @@ fn the_tolerance_stop_leaves_every_element_within_it() {
             .fold(0.0, f64::max);
         assert!(worst <= tolerance, "{kind:?}: worst element {worst:.2e}");
     }
+}
+
+/// A mesh that cannot fit the memory budget is refused before meshing (in well under a
+/// second, where meshing it would take minutes), naming an element size and a budget
+/// that fit; the size it names does fit.
+#[test]
+fn a_mesh_over_the_memory_budget_is_refused_before_meshing() {
+    let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+    // The Cornell box is about 555 units a side: 5 units makes ~100 k elements, 100 MiB.
+    let config = SolverConfig {
+        element_size: Some(5.0),
+        memory_bytes: 16 << 20,
+        ..Default::default()
+    };
+    let start = std::time::Instant::now();
+    let err = match Problem::new(scene.clone(), config.clone()) {
+        Err(e) => e,
+        Ok(p) => panic!("{} elements meshed in 16 MiB", p.mesh.elements.len()),
+    };
+    assert!(
+        start.elapsed().as_secs_f64() < 5.0,
+        "refused only after meshing"
+    );
+    let text = err.to_string();
+    assert!(
+        text.contains("--max-memory") && text.contains("16 MiB"),
+        "{text}"
+    );
+    let SolverError::MeshOverBudget { fitting, .. } = err else {
+        panic!("not a budget error: {text}")
+    };
+    let size: f64 = fitting
+        .trim_start_matches("--element-size ")
+        .split(' ')
+        .next()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no size in {fitting}"));
+    let problem = Problem::new(
+        scene,
+        SolverConfig {
+            element_size: Some(size),
+            ..config
+        },
+    )
+    .expect("the size named fits");
+    assert!(
+        problem.resident_bytes() <= 16 << 20,
+        "{} elements at {size}, estimate {}",
+        problem.mesh.elements.len(),
+        nusselt_core::mesh::estimated_elements(&problem.scene, size)
+    );
 }

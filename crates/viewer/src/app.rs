@@ -76,6 +76,7 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
             method: options.method,
             raster: options.raster.clone(),
             discontinuity: options.discontinuity,
+            memory_bytes: options.memory_bytes,
             ..Default::default()
         },
         kind: options.solver,

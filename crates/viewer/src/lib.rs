@@ -87,6 +87,8 @@ pub struct UiOptions {
     pub no_vsync: bool,
     /// Threads computing form factors (`None`: one per core).
     pub solver_threads: Option<usize>,
+    /// The run's memory budget in bytes (`SolverConfig::memory_bytes`).
+    pub memory_bytes: usize,
     pub automation: Automation,
 }
 

@@ -315,8 +315,12 @@ pub struct Stats {
     pub solver: &'static str,
     /// The solver's own line (shots and overshooting, sweeps and ω, …).
     pub report: String,
-    /// Memory held by stored form factors.
+    /// Memory held by stored form factors (cached rows, a matrix, links).
     pub matrix_bytes: usize,
+    /// What the mesh and the textures hold of the budget (`Problem::resident_bytes`).
+    pub resident_bytes: usize,
+    /// The run's memory budget (`--max-memory`).
+    pub memory_budget: usize,
     pub elements: usize,
     pub patches: usize,
     /// Steps since the last (re)start: shots, or matrix rows and then sweeps.

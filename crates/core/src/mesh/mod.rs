@@ -63,31 +63,14 @@ pub const MAX_ELEMENTS: usize = 4_000_000;
 /// element per small face). Bisection on the estimate `Σ max(1, k A_f / s²)` per side
 /// (k = 1 for convex quads, 2 for triangles and other polygons).
 pub fn element_size_for_budget(scene: &Scene, budget: usize) -> f64 {
-    let sides = if scene.two_sided { 2.0 } else { 1.0 };
-    // Elements per s² of area: a convex quad is cut into squares of about s², anything
-    // else into triangles of at most s²/2 ([`build`]).
-    let areas: Vec<f64> = scene
-        .faces
-        .iter()
-        .map(|f| {
-            let per = if f.vertices.len() == 4 && polygon::is_convex(&f.vertices) {
-                1.0
-            } else {
-                2.0
-            };
-            per * polygon::area(&f.vertices)
-        })
-        .collect();
+    let areas = cut_areas(scene);
     let total: f64 = areas.iter().sum();
     let diag = scene.bounds().diagonal();
     if !(total > 0.0 && total.is_finite() && diag > 0.0) {
         return if diag > 0.0 { diag / 80.0 } else { 1.0 };
     }
     let budget = budget.max(1) as f64;
-    let count = |s: f64| -> f64 {
-        let s2 = s * s;
-        sides * areas.iter().map(|a| (a / s2).max(1.0)).sum::<f64>()
-    };
+    let count = |s: f64| count_at(scene, &areas, s);
     // count() falls as s grows; find the smallest s with count(s) <= budget.
     let (mut lo, mut hi) = ((total / budget).sqrt() * 1e-3, diag);
     if count(hi) > budget {
@@ -106,22 +89,76 @@ pub fn element_size_for_budget(scene: &Scene, budget: usize) -> f64 {
     hi
 }
 
+/// Per face, its area times the elements per s² [`build`] cuts it into: 1 for a convex
+/// quad (squares of about s²), 2 for anything else (triangles of at most s²/2).
+fn cut_areas(scene: &Scene) -> Vec<f64> {
+    scene
+        .faces
+        .iter()
+        .map(|f| {
+            let per = if f.vertices.len() == 4 && polygon::is_convex(&f.vertices) {
+                1.0
+            } else {
+                2.0
+            };
+            per * polygon::area(&f.vertices)
+        })
+        .collect()
+}
+
+/// `Σ max(1, k A_f / s²)` over the faces (both sides of a two-sided scene).
+fn count_at(scene: &Scene, areas: &[f64], s: f64) -> f64 {
+    let sides = if scene.two_sided { 2.0 } else { 1.0 };
+    let s2 = s * s;
+    sides
+        * areas
+            .iter()
+            .map(|a| {
+                if a.is_finite() {
+                    (a / s2).max(1.0)
+                } else {
+                    1.0
+                }
+            })
+            .sum::<f64>()
+}
+
+/// About how many elements [`Mesh::build_with`] makes of `scene` at element size `size`,
+/// known before meshing so that a mesh too large for the memory budget is refused at once:
+/// per face `max(1, k A / s² + P / 2s)`, the area term of [`element_size_for_budget`] plus
+/// the part-elements along the perimeter `P` (a w × h quad cut into ⌈w/s⌉ × ⌈h/s⌉ squares
+/// has about (w/s + ½)(h/s + ½)); discontinuity cuts and T-vertex repairs add more.
+pub fn estimated_elements(scene: &Scene, size: f64) -> f64 {
+    let sides = if scene.two_sided { 2.0 } else { 1.0 };
+    let s2 = size * size;
+    let per_face = |(f, a): (&crate::scene::Face, &f64)| {
+        let n = f.vertices.len();
+        let perimeter: f64 = (0..n)
+            .map(|i| (f.vertices[(i + 1) % n] - f.vertices[i]).length())
+            .sum();
+        let count = a / s2 + perimeter / (2.0 * size);
+        if count.is_finite() {
+            count.max(1.0)
+        } else {
+            1.0
+        }
+    };
+    sides
+        * scene
+            .faces
+            .iter()
+            .zip(&cut_areas(scene))
+            .map(per_face)
+            .sum::<f64>()
+}
+
 /// The element size at which cutting the faces larger than an element adds about `extra`
 /// elements to the one each face gets (`Σ max(0, k A_f / s² − 1)` over the faces, `k` as in
 /// [`element_size_for_budget`]): the mesh of a scene with more faces than its budget.
 pub fn element_size_for_excess(scene: &Scene, extra: f64) -> f64 {
     let sides = if scene.two_sided { 2.0 } else { 1.0 };
-    let weighted: Vec<f64> = scene
-        .faces
-        .iter()
-        .map(|f| {
-            let k = if f.vertices.len() == 4 && polygon::is_convex(&f.vertices) {
-                1.0
-            } else {
-                2.0
-            };
-            k * polygon::area(&f.vertices)
-        })
+    let weighted: Vec<f64> = cut_areas(scene)
+        .into_iter()
         .filter(|a| a.is_finite() && *a > 0.0)
         .collect();
     let diag = scene.bounds().diagonal();

@@ -9,7 +9,7 @@
 //! The matrix is built a row per step (each row is one shooter's form factors to every
 //! element, the same rows shooting uses) and stored sparse: a receiver keeps only the
 //! shooters it sees. Every row is kept for the element gather, so the rows must fit in
-//! [`SolverConfig::row_cache_bytes`](super::SolverConfig); a larger mesh is refused with
+//! [`Problem::cache_bytes`](super::Problem::cache_bytes); a larger mesh is refused with
 //! [`SolverError::MatrixTooLarge`] before any work.
 //!
 //! SOR without a given ω estimates it (Young's formula for consistently ordered systems):

@@ -29,11 +29,11 @@ impl PatchMatrix {
     pub fn check(problem: &Problem, solver: &'static str) -> Result<(), SolverError> {
         let (patches, elements) = (problem.mesh.patches.len(), problem.mesh.elements.len());
         let needed = patches * elements * 4 + patches * patches * 12 / 2;
-        if needed > problem.config.row_cache_bytes {
+        if needed > problem.cache_bytes() {
             return Err(SolverError::MatrixTooLarge {
                 solver,
                 needed_mb: needed.div_ceil(1 << 20),
-                limit_mb: problem.config.row_cache_bytes >> 20,
+                limit_mb: problem.cache_bytes() >> 20,
                 patches,
                 elements,
             });

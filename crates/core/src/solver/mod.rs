@@ -50,9 +50,11 @@ pub struct SolverConfig {
     pub max_elements: Option<usize>,
     pub method: FormFactorMethod,
     pub formfactor: FormFactorParams,
-    /// Memory for cached form-factor rows, in bytes (gathering solvers refuse a matrix
-    /// that does not fit).
-    pub row_cache_bytes: usize,
+    /// The run's memory budget in bytes ([`crate::budget`]): the textures and the mesh
+    /// draw on it first (a mesh that cannot fit is refused before meshing), cached rows,
+    /// a stored matrix and hierarchical links get what is left
+    /// ([`Problem::cache_bytes`]; gathering solvers refuse a matrix that does not fit).
+    pub memory_bytes: usize,
     /// Overshooting (Feda & Purgathofer 1992): each shot also sends the light the shooter
     /// is expected to receive later, `ρ_i · ambient`, and keeps it as negative unshot
     /// radiance that the light, when it arrives, cancels.
@@ -79,7 +81,7 @@ impl Default for SolverConfig {
             max_elements: None,
             method: FormFactorMethod::Contour,
             formfactor: FormFactorParams::default(),
-            row_cache_bytes: 512 << 20,
+            memory_bytes: crate::budget::FALLBACK_BYTES,
             overshoot: true,
             regional_ambient: true,
             link_tolerance: DEFAULT_LINK_TOLERANCE,
@@ -107,7 +109,7 @@ pub enum SolverError {
         value: [f64; 3],
     },
     #[error(
-        "the {solver} solver needs {needed_mb} MB for its form-factor matrix ({patches} patches x {elements} elements), more than the {limit_mb} MB allowed (--max-memory); use fewer elements or --solver shooting"
+        "the {solver} solver needs {needed_mb} MB for its form-factor matrix ({patches} patches x {elements} elements), more than the {limit_mb} MB the memory budget leaves beside the mesh (--max-memory); use fewer elements, a larger --max-memory or --solver shooting"
     )]
     MatrixTooLarge {
         solver: &'static str,
@@ -115,6 +117,19 @@ pub enum SolverError {
         limit_mb: usize,
         patches: usize,
         elements: usize,
+    },
+    #[error(
+        "a mesh of about {elements} elements (element size {element_size:.4}) needs about {needed_mib} MiB, more than the memory budget of {budget_mib} MiB{held}: use {fitting}, or --max-memory {needed_mib} or more"
+    )]
+    MeshOverBudget {
+        elements: usize,
+        element_size: f64,
+        needed_mib: usize,
+        budget_mib: usize,
+        /// What else holds part of the budget (", of which textures hold N MiB"), or empty.
+        held: String,
+        /// The mesh flag that would fit ("--element-size 2.0175 or larger").
+        fitting: String,
     },
     #[error(
         "the emitted power (Σ Ke × area = {emitted:e}) is too large: with interreflection it would overflow to infinity; lower Ke or scale the model down"

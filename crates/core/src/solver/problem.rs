@@ -33,6 +33,51 @@ impl PhaseClock {
     }
 }
 
+/// Refuses, before meshing, a mesh whose estimated size ([`mesh::estimated_elements`]) does
+/// not fit in the memory budget beside the scene's textures, naming the element size and
+/// the budget that would fit.
+fn check_mesh_budget(scene: &Scene, config: &SolverConfig) -> Result<(), SolverError> {
+    let sides = if scene.two_sided { 2 } else { 1 };
+    let (elements, size) = match config.element_size {
+        Some(size) if size.is_finite() && size > 0.0 => {
+            (mesh::estimated_elements(scene, size), size)
+        }
+        // A bad size is the mesher's error to report.
+        Some(_) => return Ok(()),
+        None => {
+            let target = config.max_elements.unwrap_or(mesh::ELEMENT_BUDGET);
+            let count = target.max(scene.faces.len() * sides) as f64;
+            (count, mesh::element_size_for_budget(scene, target))
+        }
+    };
+    let held = scene.texture_bytes;
+    let fit = crate::budget::elements_within(config.memory_bytes, held);
+    if elements <= fit as f64 {
+        return Ok(());
+    }
+    let needed = held.saturating_add(crate::budget::mesh_bytes(elements as usize));
+    let fitting = match config.element_size {
+        // Element count falls as the size squared: the size whose count fits, 10 % spare.
+        Some(_) => format!(
+            "--element-size {:.4} or larger",
+            size * (elements / (0.9 * fit.max(1) as f64)).sqrt()
+        ),
+        None => format!("--max-elements {} or fewer", fit * 9 / 10),
+    };
+    Err(SolverError::MeshOverBudget {
+        elements: elements as usize,
+        element_size: size,
+        needed_mib: crate::budget::mib(needed),
+        budget_mib: config.memory_bytes >> 20,
+        held: if held > 0 {
+            format!(", of which textures hold {} MiB", crate::budget::mib(held))
+        } else {
+            String::new()
+        },
+        fitting,
+    })
+}
+
 /// A scene meshed for solving (see the module docs of [`crate::solver`]).
 pub struct Problem {
     pub scene: Scene,
@@ -64,6 +109,7 @@ impl Problem {
         if config.method == FormFactorMethod::GpuHemicube && config.raster.is_none() {
             return Err(SolverError::NoRaster);
         }
+        check_mesh_budget(&scene, &config)?;
         let start = std::time::Instant::now();
         let mesh = match config.element_size {
             Some(size) => {
@@ -88,6 +134,21 @@ impl Problem {
         let mut problem = Self::with_mesh(scene, config, mesh)?;
         problem.setup_seconds.insert(0, ("mesh", meshing));
         Ok(problem)
+    }
+
+    /// Bytes of the memory budget the run holds besides its caches: the textures and the
+    /// mesh at [`crate::budget::ELEMENT_BYTES`] an element.
+    pub fn resident_bytes(&self) -> usize {
+        self.scene
+            .texture_bytes
+            .saturating_add(crate::budget::mesh_bytes(self.mesh.elements.len()))
+    }
+
+    /// What the memory budget leaves for cached rows, a stored matrix or links.
+    pub fn cache_bytes(&self) -> usize {
+        self.config
+            .memory_bytes
+            .saturating_sub(self.resident_bytes())
     }
 
     /// A problem on a mesh already built for `scene`.

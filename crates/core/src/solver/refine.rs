@@ -30,26 +30,32 @@ pub fn next_levels(
     )
 }
 
+/// The solver on the refined mesh, and why refinement stopped short of its passes where
+/// it did because the next mesh would not fit.
+pub struct Refined {
+    pub solver: Box<dyn Solver>,
+    /// "refinement stopped at N elements: the next pass would make about M, more than the
+    /// memory budget holds (K)", when it did.
+    pub stopped: Option<String>,
+}
+
 /// `passes` rounds of solve (to `unshot`, at most 1e-3), mark, refine (see
 /// [`crate::mesh::adaptive`]); returns the solver on the last mesh, with the solution
 /// carried onto it where the solver can ([`Solver::carry_to`]) and from dark where it
 /// cannot: run it on to the stop wanted. Refinement stops before a mesh of more than
-/// [`crate::mesh::MAX_ELEMENTS`] elements (each level multiplies a patch's by about four).
+/// [`crate::mesh::MAX_ELEMENTS`] elements or more than the memory budget holds beside the
+/// textures (each level multiplies a patch's elements by about four), and says so.
 pub fn refine_adaptively(
     problem: Problem,
     kind: SolverKind,
     tolerance: f64,
     passes: u8,
     unshot: f64,
-) -> Result<Box<dyn Solver>, SolverError> {
-    refine_within(
-        problem,
-        kind,
-        tolerance,
-        passes,
-        unshot,
-        crate::mesh::MAX_ELEMENTS,
-    )
+) -> Result<Refined, SolverError> {
+    let fit =
+        crate::budget::elements_within(problem.config.memory_bytes, problem.scene.texture_bytes);
+    let limit = fit.min(crate::mesh::MAX_ELEMENTS);
+    refine_within(problem, kind, tolerance, passes, unshot, limit)
 }
 
 /// [`refine_adaptively`] with the element limit given.
@@ -60,7 +66,7 @@ fn refine_within(
     passes: u8,
     unshot: f64,
     max_elements: usize,
-) -> Result<Box<dyn Solver>, SolverError> {
+) -> Result<Refined, SolverError> {
     let mut levels: Vec<u8> = Vec::new();
     let never = AtomicBool::new(false);
     let mut solver = kind.build(problem)?;
@@ -79,8 +85,21 @@ fn refine_within(
                 f64::from(p.elements.end - p.elements.start) * 4f64.powi(more)
             })
             .sum();
-        if next == levels || next.iter().all(|&l| l == 0) || estimate > max_elements as f64 {
-            return Ok(solver);
+        if next == levels || next.iter().all(|&l| l == 0) {
+            break;
+        }
+        if estimate > max_elements as f64 {
+            let stopped = format!(
+                "adaptive refinement stopped at {} elements: the next pass would make about {:.0}, more than the limit of {max_elements} (--max-memory at {} bytes an element, at most {})",
+                mesh.elements.len(),
+                estimate,
+                crate::budget::ELEMENT_BYTES,
+                crate::mesh::MAX_ELEMENTS
+            );
+            return Ok(Refined {
+                solver,
+                stopped: Some(stopped),
+            });
         }
         levels = next;
         let solved = solver.problem();
@@ -97,7 +116,10 @@ fn refine_within(
             Err(refined) => kind.build(*refined)?,
         };
     }
-    Ok(solver)
+    Ok(Refined {
+        solver,
+        stopped: None,
+    })
 }
 
 #[cfg(test)]
@@ -122,6 +144,8 @@ mod tests {
         let patches = cornell().mesh.patches.len();
         let refined =
             refine_adaptively(cornell(), SolverKind::Shooting, 0.1, 1, 1e-3).expect("refined");
+        assert!(refined.stopped.is_none());
+        let refined = refined.solver;
         assert!(
             refined.problem().mesh.elements.len() > first,
             "nothing refined"
@@ -132,13 +156,15 @@ mod tests {
         // A limit below what one level would make: the first mesh comes back.
         let limited = refine_within(cornell(), SolverKind::Shooting, 0.1, 1, 1e-3, first + 1)
             .expect("limited");
-        assert_eq!(limited.problem().mesh.elements.len(), first);
+        assert!(limited.stopped.is_some_and(|s| s.contains("stopped at")));
+        assert_eq!(limited.solver.problem().mesh.elements.len(), first);
     }
 
     #[test]
     fn a_solver_that_cannot_carry_starts_the_refined_mesh_from_dark() {
-        let refined =
-            refine_adaptively(cornell(), SolverKind::Jacobi, 0.1, 1, 1e-3).expect("refined");
+        let refined = refine_adaptively(cornell(), SolverKind::Jacobi, 0.1, 1, 1e-3)
+            .expect("refined")
+            .solver;
         assert!(refined.problem().mesh.elements.len() > cornell().mesh.elements.len());
         assert_eq!(refined.steps(), 0);
     }
@@ -159,7 +185,9 @@ mod tests {
         let plain = cornell();
         let bases = cut.mesh.base_count();
         assert!(bases > plain.mesh.base_count(), "the cuts add base patches");
-        let refined = refine_adaptively(cut, SolverKind::Shooting, 0.1, 1, 1e-3).expect("refined");
+        let refined = refine_adaptively(cut, SolverKind::Shooting, 0.1, 1, 1e-3)
+            .expect("refined")
+            .solver;
         let mesh = &refined.problem().mesh;
         assert_eq!(mesh.base_count(), bases, "the cut base patches are kept");
         assert!(mesh.patches.len() > bases, "something was refined");

@@ -104,7 +104,7 @@ impl RowCache {
         conserve_energy(&problem.mesh, shooter, &mut out);
         let row: Arc<[f32]> = out.into();
         let bytes = row.len() * 4;
-        let budget = problem.config.row_cache_bytes;
+        let budget = problem.cache_bytes();
         if bytes > budget {
             return Some(row);
         }
@@ -143,7 +143,8 @@ mod tests {
             },
         )
         .expect("problem");
-        problem.config.row_cache_bytes = 2 * problem.mesh.elements.len() * 4;
+        problem.config.memory_bytes =
+            problem.resident_bytes() + 2 * problem.mesh.elements.len() * 4;
         let never = AtomicBool::new(false);
         let mut cache = RowCache::default();
         let (a, b, c) = (PatchId(0), PatchId(1), PatchId(2));
@@ -153,7 +154,7 @@ mod tests {
         cache.row(&problem, c, &never).expect("row");
         assert!(cache.contains(a) && cache.contains(c) && !cache.contains(b));
         assert_eq!(cache.evictions(), 1);
-        assert!(cache.bytes() <= problem.config.row_cache_bytes);
+        assert!(cache.bytes() <= problem.cache_bytes());
         cache.row(&problem, b, &never).expect("row"); // evicts a
         assert!(!cache.contains(a));
         let again_a = cache.row(&problem, a, &never).expect("row");

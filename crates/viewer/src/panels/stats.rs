@@ -6,6 +6,21 @@ use egui_plot::{Legend, Line, Plot, PlotPoints};
 
 use super::super::snapshot::Snapshot;
 
+/// "mesh 20 MB + stored 4 MB of 12.3 GB budget": what draws on `--max-memory`.
+fn memory_line(st: &super::super::snapshot::Stats) -> String {
+    let mb = |b: usize| b as f64 / 1e6;
+    let budget = if st.memory_budget >= 1_000_000_000 {
+        format!("{:.1} GB", st.memory_budget as f64 / 1e9)
+    } else {
+        format!("{:.0} MB", mb(st.memory_budget))
+    };
+    format!(
+        "mesh {:.0} MB + stored {:.0} MB of {budget}",
+        mb(st.resident_bytes),
+        mb(st.matrix_bytes)
+    )
+}
+
 pub(super) fn stats_section(ui: &mut egui::Ui, s: &Snapshot, failed: bool) {
     let st = &s.stats;
     egui::Grid::new("stats").num_columns(2).show(ui, |ui| {
@@ -48,6 +63,9 @@ pub(super) fn stats_section(ui: &mut egui::Ui, s: &Snapshot, failed: bool) {
                 "stored F",
                 format!("{:.1} MB", st.matrix_bytes as f64 / 1e6),
             );
+        }
+        if st.memory_budget > 0 {
+            row(ui, "memory", memory_line(st));
         }
         if let Some(t) = &s.textures {
             row(

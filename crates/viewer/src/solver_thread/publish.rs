@@ -57,6 +57,8 @@ impl Worker {
                 None => solver.report(),
             },
             matrix_bytes: solver.matrix_bytes(),
+            resident_bytes: solver.problem().resident_bytes(),
+            memory_budget: solver.problem().config.memory_bytes,
             elements: geometry.elements,
             patches: geometry.patches,
             steps: solver.steps(),

@@ -198,7 +198,8 @@ fn compute(
         PASSES,
         UNSHOT,
     )
-    .map_err(|e| e.to_string())?;
+    .map_err(|e| e.to_string())?
+    .solver;
     if cancel.load(Ordering::Relaxed) {
         return Err("cancelled".into());
     }

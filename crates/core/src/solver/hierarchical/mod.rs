@@ -91,7 +91,7 @@ pub struct HierarchicalSolver {
     /// Links made by refinement so far (kept or later split).
     links_made: usize,
     residual_at_refine: f64,
-    /// Refinement stopped short at the memory budget (`SolverConfig::row_cache_bytes`).
+    /// Refinement stopped short at the memory budget (`Problem::cache_bytes`).
     link_budget_reached: bool,
     refine_seconds: f64,
     gather_seconds: f64,
@@ -202,7 +202,7 @@ impl HierarchicalSolver {
             self.blocks = blocks;
             return true;
         }
-        let budget = self.problem.config.row_cache_bytes / std::mem::size_of::<Link>();
+        let budget = self.problem.cache_bytes() / std::mem::size_of::<Link>();
         let held = links.len() + blocks.len() * std::mem::size_of::<BlockLink>() / 16;
         let max_links = budget.saturating_sub(held);
         let Some((new_links, new_blocks, capped)) =

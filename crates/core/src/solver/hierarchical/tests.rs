@@ -262,6 +262,18 @@ fn pieces_tile_their_node() {
     }
 }
 
+/// What the mesh of built-in `name` at `element_size` holds of a memory budget.
+fn resident_bytes(name: &str, element_size: f64) -> usize {
+    let scene = Scene::builtin(name, &LoadOptions::default()).expect("scene");
+    let config = SolverConfig {
+        element_size: Some(element_size),
+        ..SolverConfig::default()
+    };
+    Problem::new(scene, config)
+        .expect("problem")
+        .resident_bytes()
+}
+
 /// A memory budget smaller than the tolerance needs: refinement stops at it (the rest
 /// of the links kept coarser), the report says so, and the solve still converges to a
 /// finite, non-negative answer.
@@ -270,7 +282,7 @@ fn the_link_budget_holds() {
     let budget_links = 20_000;
     let config = SolverConfig {
         element_size: Some(50.0),
-        row_cache_bytes: budget_links * std::mem::size_of::<Link>(),
+        memory_bytes: resident_bytes("cornell", 50.0) + budget_links * std::mem::size_of::<Link>(),
         ..SolverConfig::default()
     };
     let mut s = solver("cornell", config);
