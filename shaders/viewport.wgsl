@@ -7,7 +7,7 @@
 // its elements (what the solver multiplied Kd by) and its layer + 1 in the texture array
 // (0: untextured). With textures on, what is shown is E + (B - E) * texel / mean per
 // channel, the solution's reflected light under the texel instead of the mean, as the CPU
-// passes of `nusselt render` show it (`SolutionView::texture_ratio`).
+// passes of `nusselt render` show it (`render::per_unit_texture`).
 
 struct Uniforms {
     view_proj: mat4x4<f32>,

@@ -206,3 +206,68 @@ fn a_closed_room_of_white_placeholders_converges() {
         "mean radiance {mean} vs {exact}"
     );
 }
+
+/// sRGB 8-bit to linear (the sRGB transfer function), the reference for decoded texels.
+fn srgb_to_linear(v: u8) -> f64 {
+    let c = f64::from(v) / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// A texture whose mean differs from element to element (8 grey columns, one per element
+/// column, 8 texels each) must show its steps where the texture has them: across a step,
+/// the image changes by the ratio of the two greys (times the light's own change, measured
+/// on an untextured wall). Interpolating the radiance and dividing by each element's mean
+/// smooths the step into the interpolation instead (a ratio near 1 at every step, and a
+/// block pattern on real textures).
+#[test]
+fn a_step_between_elements_shows_as_the_texture_has_it() {
+    let greys: [u8; 8] = [60, 200, 110, 255, 40, 160, 230, 90];
+    let dir = tempfile::tempdir().expect("temp dir");
+    let img = image::RgbImage::from_fn(64, 64, |x, _| {
+        let g = greys[(x / 8) as usize];
+        image::Rgb([g, g, g])
+    });
+    img.save(dir.path().join("steps.png")).expect("png");
+    let textured = solve(scene(
+        dir.path(),
+        "newmtl wall\nKd 0.8 0.8 0.8\nmap_Kd steps.png",
+    ));
+    let flat = solve(scene(dir.path(), "newmtl wall\nKd 0.4 0.4 0.4"));
+    let settings = RenderSettings {
+        width: 64,
+        height: 64,
+        spp: 1,
+        camera: Camera {
+            eye: DVec3::new(0.5, 0.5, 2.0),
+            target: DVec3::new(0.5, 0.5, 0.0),
+            vfov_deg: 2.0 * (0.25f64).atan().to_degrees(),
+        },
+        seed: 1,
+        edge_spp: 0,
+    };
+    for pass in [Pass::Vertex, Pass::Direct, Pass::Gather] {
+        let img = |s: &ProgressiveSolver| {
+            pass.render(s.problem(), &s.element_radiance(false), &settings, 64)
+        };
+        let (t, f) = (img(&textured), img(&flat));
+        let mut worst = 0.0f64;
+        for j in [12u32, 32, 52] {
+            for k in 0..7usize {
+                // Two texels inside each side of the step between columns k and k + 1.
+                let (l, r) = (8 * k as u32 + 5, 8 * k as u32 + 10);
+                let seen = (t.get(r, j).x / t.get(l, j).x) / (f.get(r, j).x / f.get(l, j).x);
+                let want = srgb_to_linear(greys[k + 1]) / srgb_to_linear(greys[k]);
+                worst = worst.max((seen / want - 1.0).abs());
+            }
+        }
+        // The light changes smoothly over 5 texels (measured on the flat wall); what is
+        // left is the textured wall's slightly different interreflection, well under 3 %
+        // (the gather's 64 rays a pixel add their noise).
+        let tolerance = if pass == Pass::Gather { 0.06 } else { 0.03 };
+        assert!(worst < tolerance, "{pass:?}: step ratio off by {worst}");
+    }
+}

@@ -234,7 +234,8 @@ pub fn element_direct(ctx: &RowContext, method: FormFactorMethod) -> Vec<Rgb> {
 /// The indirect part of `radiance` per element (a solution of `problem`) at the mesh's
 /// display vertices: each element's value minus its direct share `ρ_j Σ_l F_jl E_l`
 /// ([`element_direct`]) and its share of the suns and point lights, what [`render`] adds
-/// the per-pixel direct light to.
+/// the per-pixel direct light to; per unit of texture where textured
+/// ([`super::per_unit_texture`]).
 pub fn indirect_vertex_radiance(problem: &crate::solver::Problem, radiance: &[Rgb]) -> Vec<Rgb> {
     let direct = element_direct(&problem.row_context(), problem.config.method);
     let rho = problem.element_reflectance();
@@ -246,7 +247,13 @@ pub fn indirect_vertex_radiance(problem: &crate::solver::Problem, radiance: &[Rg
         .enumerate()
         .map(|(k, ((b, d), r))| *b - *r * (*d + punctual.get(k).copied().unwrap_or(Rgb::ZERO)))
         .collect();
-    problem.mesh.vertex_values(&indirect)
+    let values = super::per_unit_texture(
+        &problem.scene,
+        &problem.mesh,
+        problem.element_texture(),
+        &indirect,
+    );
+    problem.mesh.vertex_values(&values)
 }
 
 /// The whole second pass: `radiance` per element (a solution of `problem`, with or without

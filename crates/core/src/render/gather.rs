@@ -107,8 +107,8 @@ fn shade(
         gathered += seen(view, &Ray::new(p + n * epsilon, d), sky);
     }
     let e = view.mesh.triangle_element[hit.id as usize].0 as usize;
-    let rho = match view.texture_ratio(e, p) {
-        Some(ratio) => material.reflectance * view.texture[e] * ratio,
+    let rho = match view.texel(e, p) {
+        Some(texel) => material.reflectance * texel,
         None => material.reflectance,
     };
     material.emission + rho * (direct + gathered / rays as f64)

@@ -63,20 +63,46 @@ pub struct SolutionView<'a> {
 }
 
 impl SolutionView<'_> {
-    /// The texel's colour over the element's mean at point `x` of element `e`: what the
-    /// solution's reflected light is multiplied by to show the texture under the computed
-    /// light, `E + ρ(x) H(x)` with `ρ(x) = Kd · texel(x)`. `None` where untextured.
-    pub fn texture_ratio(&self, e: usize, x: glam::DVec3) -> Option<Rgb> {
-        let mean = *self.texture.get(e)?;
+    /// The texel's colour at point `x` of element `e`, what the interpolated values
+    /// of a textured view ([`per_unit_texture`]) are multiplied by to show the texture
+    /// under the computed light, `E + ρ(x) H(x)` with `ρ(x) = Kd · texel(x)`. `None` where
+    /// untextured.
+    pub fn texel(&self, e: usize, x: glam::DVec3) -> Option<Rgb> {
+        self.texture.get(e)?;
         let (texel, _alpha) = self.scene.texel(self.mesh.elements[e].face as usize, x)?;
-        let ratio = |t: f64, m: f64| if m > 1e-9 { t / m } else { 1.0 };
-        Some(Rgb::new(
-            ratio(texel.x, mean.x),
-            ratio(texel.y, mean.y),
-            ratio(texel.z, mean.z),
-        ))
-        .filter(|r| r.is_finite())
+        Some(texel).filter(|t| t.is_finite())
     }
+}
+
+/// A texture mean below which a channel is taken as black (left undivided).
+const MEAN_FLOOR: f64 = 1e-9;
+
+/// Per element, the value to interpolate across a textured mesh: `E + (B − E) / t̄`, the
+/// reflected light per unit of texture (`t̄` the texture's mean over the element, what the
+/// solver multiplied `Kd` by), so that a pixel shows `E + (V(x) − E) · texel(x)`
+/// ([`SolutionView::texel`]) with `V` interpolated smoothly from these values.
+/// Interpolating `B` instead and dividing by each element's own mean makes the ratio jump
+/// at every element edge: a block pattern where the texture's mean varies between
+/// elements. Untextured elements (and `texture` empty) keep `B`, and so does a channel
+/// whose mean is black (there `B = E`, whatever the texel).
+pub fn per_unit_texture(scene: &Scene, mesh: &Mesh, texture: &[Rgb], radiance: &[Rgb]) -> Vec<Rgb> {
+    if texture.is_empty() {
+        return radiance.to_vec();
+    }
+    let divide = |b: f64, e: f64, m: f64| if m > MEAN_FLOOR { e + (b - e) / m } else { b };
+    radiance
+        .iter()
+        .zip(&mesh.elements)
+        .zip(texture)
+        .map(|((b, el), m)| {
+            let emission = scene.materials[mesh.patch(el.patch).material.0 as usize].emission;
+            Rgb::new(
+                divide(b.x, emission.x, m.x),
+                divide(b.y, emission.y, m.y),
+                divide(b.z, emission.z, m.z),
+            )
+        })
+        .collect()
 }
 
 /// BVH over the mesh's display triangles (ids = display triangle index).
@@ -106,8 +132,8 @@ fn shade(view: &SolutionView, ray: &Ray) -> FirstHit {
     }
     let [a, b, c] = tri.map(|v| view.vertex_radiance[v as usize]);
     let mut radiance = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
-    if let Some(ratio) = view.texture_ratio(element.0 as usize, ray.at(hit.t)) {
-        radiance = material.emission + (radiance - material.emission) * ratio;
+    if let Some(texel) = view.texel(element.0 as usize, ray.at(hit.t)) {
+        radiance = material.emission + (radiance - material.emission) * texel;
     }
     if material.is_emitter() {
         // An emitter that also reflects shows its radiosity `E + ρH` (its display group

@@ -53,7 +53,13 @@ impl Pass {
             Pass::Direct => direct::render_solution(problem, radiance, settings),
             Pass::Gather => gather::render_solution(problem, radiance, settings, gather_rays),
             Pass::Vertex => {
-                let vertex = problem.mesh.vertex_values(radiance);
+                let values = super::per_unit_texture(
+                    &problem.scene,
+                    &problem.mesh,
+                    problem.element_texture(),
+                    radiance,
+                );
+                let vertex = problem.mesh.vertex_values(&values);
                 let bvh = display_bvh(&problem.scene, &problem.mesh);
                 let view = SolutionView {
                     scene: &problem.scene,

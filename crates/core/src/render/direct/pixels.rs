@@ -324,10 +324,11 @@ fn see(view: &SolutionView, ray: &Ray) -> Seen {
     let mut indirect = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
     let mut rho = material.reflectance;
     let e = view.mesh.triangle_element[hit.id as usize].0 as usize;
-    if let Some(ratio) = view.texture_ratio(e, p) {
-        // ρ(x) = Kd · texel(x); the interpolated reflected light follows the texel too.
-        rho *= view.texture[e] * ratio;
-        indirect = material.emission + (indirect - material.emission) * ratio;
+    if let Some(texel) = view.texel(e, p) {
+        // ρ(x) = Kd · texel(x); the reflected light, interpolated per unit of texture,
+        // follows the texel too.
+        rho *= texel;
+        indirect = material.emission + (indirect - material.emission) * texel;
     }
     Seen::Surface {
         p,
