@@ -143,8 +143,10 @@ mod tests {
             },
         )
         .expect("problem");
-        problem.config.memory_bytes =
-            problem.resident_bytes() + 2 * problem.mesh.elements.len() * 4;
+        problem.config.memory_bytes = problem.resident_bytes()
+            + (2.0 * (problem.mesh.elements.len() * 4) as f64 / crate::budget::CACHE_SHARE)
+                as usize
+            + 8;
         let never = AtomicBool::new(false);
         let mut cache = RowCache::default();
         let (a, b, c) = (PatchId(0), PatchId(1), PatchId(2));
