@@ -482,3 +482,24 @@ fn an_unlit_model_is_refused_only_when_asked() {
         "{stderr}"
     );
 }
+
+/// A memory budget too small for the mesh asked for is refused in seconds (before meshing a
+/// million elements), naming the budget and the flags that would fit.
+#[test]
+fn a_mesh_over_the_memory_budget_is_refused_in_seconds() {
+    let out = std::env::temp_dir().join("nusselt-never-written.png");
+    let args = [
+        "render",
+        "--builtin",
+        "cornell",
+        "--element-size",
+        "1.4",
+        "--max-memory",
+        "512",
+        "--out",
+        out.to_str().expect("utf-8 temp dir"),
+    ];
+    for expected in ["memory budget of 512 MiB", "--element-size 2.", "or more"] {
+        refused_within(&args, expected, Duration::from_secs(10));
+    }
+}

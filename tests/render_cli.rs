@@ -75,6 +75,13 @@ fn cornell_render_has_the_red_wall_on_the_left_and_writes_every_output() {
     }
     assert!(json["error"].is_null());
     assert!(json["unshot_fraction"].as_f64().expect("number") <= 1e-4);
+    // The default solver is auto; on a small scene it shoots, and says why.
+    assert_eq!(json["solver"], "shooting");
+    let why = json["solver_auto"].as_str().expect("auto's reason");
+    assert!(
+        why.starts_with("shooting: ") && why.contains("elements"),
+        "{why}"
+    );
 
     let img = Image::load_pfm(Path::new(&p("c.pfm"))).expect("pfm");
     assert_eq!((img.width, img.height), (48, 48));

@@ -44,9 +44,11 @@ pub struct RenderArgs {
     /// Shoot only the unshot radiance (no overshooting by the ambient estimate).
     #[arg(long)]
     pub no_overshoot: bool,
-    /// Solver: shooting (progressive refinement, default), jacobi, gauss-seidel, sor or cg
-    /// (the last four store the form-factor matrix; --unshot is their relative residual).
-    #[arg(long, default_value = "shooting")]
+    /// Solver: auto (default: shooting up to 100,000 elements or under --seconds, else
+    /// hierarchical; the choice and its reason are printed), shooting (progressive
+    /// refinement), jacobi, gauss-seidel, sor, cg (these four store the form-factor matrix;
+    /// --unshot is their relative residual), hierarchical or wavelet.
+    #[arg(long, default_value = "auto")]
     pub solver: String,
     /// SOR relaxation factor in (0, 2) (default: estimated from the first sweeps).
     #[arg(long, allow_negative_numbers = true)]
@@ -233,24 +235,29 @@ fn render(args: &RenderArgs) -> Result<()> {
         "global" => false,
         other => bail!("unknown --ambient '{other}' (expected regional or global)"),
     };
-    let kind = SolverKind::parse(&args.solver, args.omega).ok_or_else(|| {
-        anyhow::anyhow!(
-            "unknown --solver '{}' (expected one of: {})",
-            args.solver,
-            SolverKind::NAMES.join(", ")
-        )
-    })?;
-    if args.omega.is_some() && !matches!(kind, SolverKind::Sor(_)) {
+    // `None`: auto, chosen once the mesh is known (solver::auto).
+    let asked = match args.solver.as_str() {
+        "auto" => None,
+        name => Some(SolverKind::parse(name, args.omega).ok_or_else(|| {
+            anyhow::anyhow!(
+                "unknown --solver '{name}' (expected auto or one of: {})",
+                SolverKind::NAMES.join(", ")
+            )
+        })?),
+    };
+    if args.omega.is_some() && !matches!(asked, Some(SolverKind::Sor(_))) {
         bail!(
             "--omega is the relaxation factor of --solver sor; it does nothing for --solver {}",
-            kind.name()
+            args.solver
         );
     }
     if let Some(t) = args.link_tolerance {
         if !(t.is_finite() && t > 0.0) {
             bail!("--link-tolerance must be a positive number, got {t}");
         }
-        if !matches!(kind, SolverKind::Hierarchical | SolverKind::Wavelet) {
+        if let Some(kind) = asked
+            && !matches!(kind, SolverKind::Hierarchical | SolverKind::Wavelet)
+        {
             bail!(
                 "--link-tolerance is the refinement threshold of --solver hierarchical and wavelet; it does nothing for --solver {}",
                 kind.name()
@@ -314,6 +321,20 @@ fn render(args: &RenderArgs) -> Result<()> {
     let adapter = config.raster.as_ref().map(|r| r.describe());
     let solve_start = Instant::now();
     let problem = Problem::new(scene, config)?;
+    let (kind, auto_reason) = match asked {
+        Some(kind) => (kind, None),
+        None => {
+            let run = nusselt_core::solver::auto::RunShape {
+                progressive_image: args.seconds.is_some(),
+                link_tolerance: args.link_tolerance.is_some(),
+            };
+            let (kind, why) = nusselt_core::solver::auto::choose(&problem, run);
+            if !args.quiet && !args.json {
+                eprintln!("--solver auto: {why}");
+            }
+            (kind, Some(why))
+        }
+    };
     let mut solver = match args.adaptive {
         Some(tolerance) => {
             let refined = nusselt_core::solver::refine::refine_adaptively(
@@ -482,6 +503,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         "vertices": problem.mesh.vertices.len(),
         "shots": steps,
         "solver": name,
+        "solver_auto": auto_reason,
         "solver_report": report,
         "matrix_bytes": matrix_bytes,
         "load_seconds": load_seconds,

@@ -34,9 +34,10 @@ pub struct ViewCmdArgs {
     /// Form-factor method (contour, exact, hemicube, raycast, montecarlo, hybrid, gpu-hemicube).
     #[arg(long = "formfactor", alias = "method")]
     pub method: Option<String>,
-    /// Solver: shooting (progressive refinement, default), jacobi, gauss-seidel, sor or cg,
-    /// as in `nusselt render`; the panel switches it later.
-    #[arg(long, default_value = "shooting")]
+    /// Solver: auto (default: shooting, whose image improves with every shot), shooting,
+    /// jacobi, gauss-seidel, sor, cg, hierarchical or wavelet, as in `nusselt render`; the
+    /// panel switches it later.
+    #[arg(long, default_value = "auto")]
     pub solver: String,
     /// SOR relaxation factor in (0, 2) (default: estimated from the first sweeps); only
     /// with --solver sor.
@@ -165,11 +166,19 @@ fn parse_window(text: &str) -> Result<[f32; 2]> {
     Ok([parse(w)?, parse(h)?])
 }
 
+/// Why `--solver auto` is shooting in the viewer (`nusselt_core::solver::auto`).
+const VIEWER_AUTO_REASON: &str = "shooting: the viewer shows the solution while it converges, and shooting improves it with every shot (hierarchical radiosity shows nothing before its refinement ends)";
+
 /// `--solver NAME [--omega W]`: ω only with sor, and in (0, 2).
 fn parse_solver(name: &str, omega: Option<f64>) -> Result<SolverKind> {
+    if name == "auto" {
+        // What `auto` stands for in the viewer (solver::auto): an image is wanted while
+        // solving, whatever the scene's size.
+        return parse_solver("shooting", omega);
+    }
     let kind = SolverKind::parse(name, omega).with_context(|| {
         format!(
-            "unknown --solver '{name}' (expected one of: {})",
+            "unknown --solver '{name}' (expected auto or one of: {})",
             SolverKind::NAMES.join(", ")
         )
     })?;
@@ -278,6 +287,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
             element_size: args.element_size,
             method,
             solver,
+            solver_reason: (args.solver == "auto").then(|| VIEWER_AUTO_REASON.to_string()),
             teach,
             projector: args.projector,
             raster: super::method::raster_for(method)?,

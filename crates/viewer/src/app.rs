@@ -110,6 +110,7 @@ impl ViewerApp {
             Vec::new()
         };
         let panel = PanelState {
+            solver_reason: options.solver_reason.clone(),
             view: ViewSettings {
                 ambient: options.ambient,
                 exposure_stops: options.exposure_stops,

@@ -58,6 +58,8 @@ pub struct UiOptions {
     pub method: FormFactorMethod,
     /// The solver to start with (`--solver`).
     pub solver: nusselt_core::solver::SolverKind,
+    /// Why, when `--solver auto` chose it (shown in the stats panel).
+    pub solver_reason: Option<String>,
     /// Teaching mode (`--teach`): the Teach panel opens on this view.
     pub teach: Option<teach::TeachView>,
     /// Teaching mode starts in projector mode (large text, light theme).

@@ -102,6 +102,8 @@ fn fmt(x: f64) -> String {
 /// Panel-side state the app owns.
 pub struct PanelState {
     pub view: ViewSettings,
+    /// Why `--solver auto` chose the first solver (`UiOptions::solver_reason`).
+    pub solver_reason: Option<String>,
     pub element_size: f64,
     pub element_size_text: String,
     pub element_size_error: Option<String>,
@@ -202,7 +204,12 @@ pub fn side_panel(
         display_section(ui, state, snap, actions);
         ui.separator();
         if let Some(s) = snap {
-            stats::stats_section(ui, s, state.solver_failure.is_some());
+            stats::stats_section(
+                ui,
+                s,
+                state.solver_failure.is_some(),
+                state.solver_reason.as_deref(),
+            );
             if state.show_plot {
                 stats::plot_section(ui, s);
             }

@@ -22,6 +22,7 @@ use crate::mesh::{Mesh, MeshError, PatchId};
 use crate::scene::{MaterialId, Rgb};
 
 pub mod ambient;
+pub mod auto;
 pub mod cg;
 pub mod gathering;
 pub mod hierarchical;

@@ -21,7 +21,8 @@ fn memory_line(st: &super::super::snapshot::Stats) -> String {
     )
 }
 
-pub(super) fn stats_section(ui: &mut egui::Ui, s: &Snapshot, failed: bool) {
+/// `reason`: why `--solver auto` chose the first solver, shown while that solver runs.
+pub(super) fn stats_section(ui: &mut egui::Ui, s: &Snapshot, failed: bool, reason: Option<&str>) {
     let st = &s.stats;
     egui::Grid::new("stats").num_columns(2).show(ui, |ui| {
         let row = |ui: &mut egui::Ui, k: &str, v: String| {
@@ -35,6 +36,12 @@ pub(super) fn stats_section(ui: &mut egui::Ui, s: &Snapshot, failed: bool) {
             format!("{} ({} patches)", st.elements, st.patches),
         );
         row(ui, "solver", st.solver.to_string());
+        if let Some(why) = reason.filter(|r| r.starts_with(st.solver)) {
+            // The reason after "shooting: ", wrapped: it is a sentence.
+            ui.label("auto");
+            ui.add(egui::Label::new(why.split_once(": ").map_or(why, |(_, w)| w)).wrap());
+            ui.end_row();
+        }
         // Shooting's unit of work is a shot; a gathering solver's a row, then a sweep.
         let (steps, residual) = if st.solver == "shooting" {
             ("shots", "unshot")
