@@ -10,7 +10,9 @@
 //! `Q`'s edges. For a light edge `ab`, the region some point of `ab` cannot see is the
 //! convex hull of `a`'s and `b`'s regions; the hull's sides that join the two are the
 //! edge-vertex (EV) events of `ab` with `Q`'s vertices (planes through `ab` that touch
-//! `Q`). Both are cut: together they are the first-order (D1) discontinuities of a convex
+//! `Q`). Point lights cut the vertex-edge events of their one vertex, suns the outline of
+//! `Q` projected along their direction (a soft sun's penumbra is not outlined). Both are
+//! cut: together they are the first-order (D1) discontinuities of a convex
 //! light and one convex blocker, the penumbra's outer boundary and the umbra's among them. Edge-edge events between
 //! several blockers (quadric surfaces in general) and higher-order ones are not found here,
 //! and faces that straddle `v`'s height are skipped. Contact lines, the zeroth order, are
@@ -29,7 +31,7 @@ use super::cluster::convex_hull_2d;
 use super::footprint::{Piece, cut, overlaps};
 use crate::geometry::polygon;
 use crate::geometry::sampling::basis;
-use crate::scene::Scene;
+use crate::scene::{Light, Scene};
 
 /// Most shadow outlines cut into one unit.
 pub const MAX_CUTS: usize = 96;
@@ -37,6 +39,51 @@ pub const MAX_CUTS: usize = 96;
 /// Blockers smaller than this fraction of a patch's area cast no cut (their shadows are
 /// smaller than the elements).
 const MIN_BLOCKER: f64 = 0.25;
+
+/// Where the scene's lights that are not faces cast shadows from: point lights (and spots)
+/// from their position, suns along their direction (a soft sun's central one: its
+/// penumbra's own outline is not cut).
+#[derive(Default)]
+struct PunctualLights {
+    points: Vec<DVec3>,
+    /// Unit directions towards each sun.
+    suns: Vec<DVec3>,
+}
+
+impl PunctualLights {
+    fn of(scene: &Scene) -> Self {
+        let mut out = Self::default();
+        for light in scene.lights.iter().filter(|l| l.is_on()) {
+            match light {
+                Light::Point { position, .. } => out.points.push(*position),
+                Light::Sun { direction, .. } => {
+                    out.suns.extend(direction.try_normalize());
+                }
+                Light::Sky { .. } => {}
+            }
+        }
+        out
+    }
+
+    fn is_empty(&self) -> bool {
+        self.points.is_empty() && self.suns.is_empty()
+    }
+
+    /// The shadows of blocker `q` (normal `nq`) on the plane through `origin` (normal `n`).
+    fn shadows(&self, q: &[DVec3], nq: DVec3, origin: DVec3, n: DVec3) -> Vec<Vec<DVec3>> {
+        let from_points = self.points.iter().filter_map(|&v| {
+            let hv = (v - origin).dot(n);
+            (hv > 0.0)
+                .then(|| shadow(v, hv, q, nq, origin, n))
+                .flatten()
+        });
+        let from_suns = self
+            .suns
+            .iter()
+            .filter_map(|&d| parallel_shadow(d, q, nq, origin, n));
+        from_points.chain(from_suns).collect()
+    }
+}
 
 /// Cuts `pieces` along the shadow outlines of the scene's lights (see the module docs).
 pub(super) fn split(pieces: Vec<Piece>, scene: &Scene, patch_area: f64) -> Vec<Piece> {
@@ -46,7 +93,8 @@ pub(super) fn split(pieces: Vec<Piece>, scene: &Scene, patch_area: f64) -> Vec<P
         .filter(|f| scene.materials[f.material.0 as usize].is_emitter())
         .map(|f| f.vertices.as_slice())
         .collect();
-    if lights.is_empty() {
+    let punctual = PunctualLights::of(scene);
+    if lights.is_empty() && punctual.is_empty() {
         return pieces;
     }
     let blockers: Vec<(&[DVec3], DVec3)> = scene
@@ -89,6 +137,9 @@ pub(super) fn split(pieces: Vec<Piece>, scene: &Scene, patch_area: f64) -> Vec<P
                     }
                 }
             }
+        }
+        for (q, nq) in &blockers {
+            outlines.extend(punctual.shadows(q, *nq, origin, n));
         }
         for outline in outlines {
             if cuts >= MAX_CUTS {
@@ -162,6 +213,42 @@ fn shadow(
     Some(out)
 }
 
+/// `q` projected along the sun direction `d` (unit, towards the sun) onto the plane through
+/// `origin` with normal `n`, counter-clockwise about `n`; `None` unless the plane faces the
+/// sun, `q` faces it, is convex and lies wholly above the plane (touching allowed).
+fn parallel_shadow(
+    d: DVec3,
+    q: &[DVec3],
+    nq: DVec3,
+    origin: DVec3,
+    n: DVec3,
+) -> Option<Vec<DVec3>> {
+    let dn = d.dot(n);
+    if dn <= 1e-9 || d.dot(nq) <= 1e-9 || !polygon::is_convex(q) {
+        return None;
+    }
+    let scale = q
+        .iter()
+        .map(|x| (*x - origin).length())
+        .fold(0.0, f64::max)
+        .max(1e-300);
+    let tolerance = 1e-9 * scale;
+    let heights: Vec<f64> = q.iter().map(|x| (*x - origin).dot(n)).collect();
+    if heights.iter().any(|h| *h < -tolerance) || heights.iter().all(|h| h.abs() <= tolerance) {
+        return None;
+    }
+    let mut out: Vec<DVec3> = q
+        .iter()
+        .zip(&heights)
+        .map(|(x, h)| *x - d * (h / dn))
+        .collect();
+    let normal = polygon::normal(&out)?;
+    if normal.dot(n) < 0.0 {
+        out.reverse();
+    }
+    Some(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -221,6 +308,76 @@ usemtl light\nf 9 10 11 12\n";
             face: 0,
         };
         assert_eq!(split(vec![floor], &dark, 1.0).len(), 1);
+    }
+
+    /// A sun straight above a 2 × 2 blocker at height 2 casts its 2 × 2 shadow under it; a
+    /// sun at 45° towards +x moves it by 2 along x; a point light at height 4 doubles it
+    /// (as the tiny area light above does): each outline is cut into the floor.
+    #[test]
+    fn suns_and_point_lights_cut_the_floor_along_their_shadows() {
+        let obj = "mtllib s.mtl
+v -10 0 -10\nv 10 0 -10\nv 10 0 10\nv -10 0 10
+v -1 2 -1\nv 1 2 -1\nv 1 2 1\nv -1 2 1
+usemtl floor\nf 1 4 3 2
+usemtl block\nf 5 8 7 6\n";
+        let mtl = "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl block\nKd 0.5 0.5 0.5\n";
+        let base = Scene::from_obj_str("s.obj", obj, &[("s.mtl", mtl)], &LoadOptions::default())
+            .expect("scene");
+        let (one, half) = (crate::scene::Rgb::ONE, 0.5f64.sqrt());
+        let cases = [
+            (
+                Light::Sun {
+                    direction: DVec3::Y,
+                    irradiance: one,
+                    angular_radius: 0.0,
+                },
+                DVec3::ZERO,
+                4.0,
+            ),
+            (
+                Light::Sun {
+                    direction: DVec3::new(half, half, 0.0),
+                    irradiance: one,
+                    angular_radius: 0.0,
+                },
+                DVec3::new(-2.0, 0.0, 0.0),
+                4.0,
+            ),
+            (
+                Light::Point {
+                    position: DVec3::new(0.0, 4.0, 0.0),
+                    intensity: one,
+                    cone: None,
+                },
+                DVec3::ZERO,
+                16.0,
+            ),
+        ];
+        for (light, centre, area) in cases {
+            let mut scene = base.clone();
+            scene.lights = vec![light];
+            let floor = Piece {
+                poly: scene.faces[0].vertices.clone(),
+                face: 0,
+            };
+            let pieces = split(vec![floor], &scene, 1.0);
+            let total: f64 = pieces.iter().map(|p| polygon::area(&p.poly)).sum();
+            assert!((total - 400.0).abs() < 1e-6, "area kept: {total}");
+            let shadow = pieces.iter().find(|p| {
+                let lo = p.poly.iter().copied().fold(DVec3::INFINITY, DVec3::min);
+                let hi = p.poly.iter().copied().fold(DVec3::NEG_INFINITY, DVec3::max);
+                let c = (lo + hi) / 2.0;
+                (polygon::area(&p.poly) - area).abs() < 1e-6 && (c - centre).length() < 1e-6
+            });
+            assert!(
+                shadow.is_some(),
+                "{light:?}: {:?}",
+                pieces
+                    .iter()
+                    .map(|p| polygon::area(&p.poly))
+                    .collect::<Vec<_>>()
+            );
+        }
     }
 }
 
