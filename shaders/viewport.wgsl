@@ -80,12 +80,16 @@ fn linear_to_srgb(c: vec3<f32>) -> vec3<f32> {
 @fragment
 fn fs_mesh(v: MeshOut) -> @location(0) vec4<f32> {
     var radiance = v.radiance;
-    // The toggle is uniform, so the sample (with its implicit derivatives) is in uniform
-    // control flow; the per-vertex layer only selects its result.
+    // Sampled in uniform control flow (implicit derivatives); the per-vertex layer and the
+    // uniform toggle only select its result.
+    let layer = i32(max(v.layer, 1u) - 1u);
+    let sampled = textureSample(diffuse_maps, diffuse_sampler, v.uv, layer);
+    // A cut-out's hole (alpha below one half) is not a surface, textures shown or not.
+    if (v.layer > 0u && sampled.a < 0.5) {
+        discard;
+    }
     if (u.params.y > 0.5) {
-        let layer = i32(max(v.layer, 1u) - 1u);
-        let texel = textureSample(diffuse_maps, diffuse_sampler, v.uv, layer).rgb;
-        let shown = v.emission + (radiance - v.emission) * texture_ratio(texel, v.mean);
+        let shown = v.emission + (radiance - v.emission) * texture_ratio(sampled.rgb, v.mean);
         radiance = select(radiance, shown, v.layer > 0u);
     }
     var c = linear_to_srgb(max(radiance, vec3<f32>(0.0)) * u.ambient_exposure.w);

@@ -245,6 +245,7 @@ fn triangles(poly: &[DVec3], id: u32) -> Vec<TriangleInput> {
             vertices: [poly[t[0]], poly[t[1]], poly[t[2]]],
             id,
             cull_back: false,
+            cut: None,
         })
         .collect()
 }
@@ -356,6 +357,7 @@ fn occluder_bvh(occluders: &[Vec<DVec3>]) -> Bvh {
                 vertices: [o[t[0]], o[t[1]], o[t[2]]],
                 id: i as u32,
                 cull_back: false,
+                cut: None,
             });
         }
     }

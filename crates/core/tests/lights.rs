@@ -259,6 +259,25 @@ fn a_window_pane_passes_its_transmittance_of_the_sun_and_sky() {
         let sky = p.external.sky(k).x;
         assert!(sky >= t - 1e-12 && sky <= 1.0 && sky < 0.99, "sky {sky}");
     }
+    // The path tracer lets the sun through the same pane: the floor seen from under the
+    // pane shows ρ t E cos θ / π, plus what the pane reflects back of the floor's own light
+    // (a Fresnel reflectance of a few per cent of it), never 0 as a blocked shadow ray gives.
+    let mut sun_only = s.problem().scene.clone();
+    sun_only.lights.retain(|l| matches!(l, Light::Sun { .. }));
+    let tracer = nusselt_core::render::pathtrace::PathTracer::new(&sun_only);
+    let ray =
+        nusselt_core::geometry::Ray::new(DVec3::new(0.0, 0.5, 0.0), DVec3::new(0.1, -1.0, 0.2));
+    let mut rng = nusselt_core::geometry::Rng::new(5, 0);
+    let n = 256;
+    let seen = (0..n)
+        .map(|_| tracer.radiance(&ray, &mut rng).x)
+        .sum::<f64>()
+        / n as f64;
+    let expected = RHO * t * sun.y / PI;
+    assert!(
+        seen / expected > 0.99 && seen / expected < 1.08,
+        "path tracer under the pane: {seen} vs ρ t E cos θ / π = {expected}"
+    );
 }
 
 #[test]

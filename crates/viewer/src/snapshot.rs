@@ -216,6 +216,7 @@ impl Geometry {
                 id: i as u32,
                 // Matches the viewport, which culls back faces.
                 cull_back: true,
+                cut: None,
             });
         }
         if let Some(x) = tex.as_mut() {

@@ -73,9 +73,11 @@ impl TextureLayers {
             return None;
         }
         let size = layer_size(&maps);
+        let alphas = alpha_sources(scene, &layer_of);
         let per_layer: Vec<Vec<Vec<[f32; 4]>>> = maps
             .par_iter()
-            .map(|t| mip_chain(resample(&level0(t), t.width, t.height, size), size))
+            .zip(&alphas)
+            .map(|(t, a)| mip_chain(resample(&level0(t, *a), t.width, t.height, size), size))
             .collect();
         let mip_levels = per_layer[0].len() as u32;
         let mips = (0..mip_levels as usize)
@@ -129,9 +131,26 @@ fn layer_size(maps: &[&Texture]) -> u32 {
     size
 }
 
-/// The texture's full-resolution texels, top row first. The core's bilinear sample at a
-/// texel's centre is that texel exactly.
-fn level0(t: &Texture) -> Vec<[f32; 4]> {
+/// Per layer, the alpha map (`map_d`) of a material that uses the layer's texture as its
+/// diffuse map: the layer's alpha is read from it, so the shader can discard the holes of
+/// a cut-out (the first such material's map when several differ).
+fn alpha_sources<'a>(scene: &'a Scene, layer_of: &[Option<u32>]) -> Vec<Option<&'a Texture>> {
+    let mut out = vec![None; layer_of.iter().flatten().count()];
+    for m in &scene.materials {
+        if let (Some(d), Some(a)) = (m.diffuse_map, m.alpha_map)
+            && let Some(Some(layer)) = layer_of.get(d.0 as usize)
+            && let Some(t) = scene.textures.get(a.0 as usize)
+        {
+            out[*layer as usize].get_or_insert(t.as_ref());
+        }
+    }
+    out
+}
+
+/// The texture's full-resolution texels, top row first, with the alpha of `alpha` (read at
+/// the same texture coordinates) when given. The core's bilinear sample at a texel's
+/// centre is that texel exactly.
+fn level0(t: &Texture, alpha: Option<&Texture>) -> Vec<[f32; 4]> {
     let (w, h) = (t.width, t.height);
     let mut out = Vec::with_capacity(w as usize * h as usize);
     for y in 0..h {
@@ -140,7 +159,11 @@ fn level0(t: &Texture) -> Vec<[f32; 4]> {
                 (x as f64 + 0.5) / w as f64,
                 1.0 - (y as f64 + 0.5) / h as f64,
             );
-            out.push(t.sample(uv).map(|c| c as f32));
+            let mut texel = t.sample(uv);
+            if let Some(a) = alpha {
+                texel[3] = a.sample(uv)[3];
+            }
+            out.push(texel.map(|c| c as f32));
         }
     }
     out
@@ -247,7 +270,7 @@ mod tests {
     fn level0_reads_the_texels_back() {
         let texels: Vec<[f32; 4]> = (0..12).map(|i| [i as f32 / 12.0, 0.5, 0.0, 1.0]).collect();
         let t = Texture::from_linear(4, 3, texels.clone());
-        for (a, b) in level0(&t).iter().zip(&texels) {
+        for (a, b) in level0(&t, None).iter().zip(&texels) {
             for k in 0..4 {
                 assert!((a[k] - b[k]).abs() < 1e-6, "{a:?} vs {b:?}");
             }

@@ -56,14 +56,14 @@ impl GlassVisibility {
         }) else {
             return Self::default();
         };
-        let opaque = mesh.blocker_triangles_where(scene, |f| {
+        let opaque = mesh.blocker_bvh_where(scene, |f| {
             !matches!(
                 scene.materials[f.material.0 as usize].surface,
                 Surface::Glass { .. }
             )
         });
         Self {
-            opaque: Some(Bvh::build(&opaque)),
+            opaque: Some(opaque),
             transmittance: slab_transmittance(ior),
         }
     }

@@ -361,8 +361,12 @@ pub(crate) fn element_visibility(
     }
     // Shooters that get every ray (lights, or all with probing off) get exact shadows
     // instead; the others' penumbrae are sampled (clipping costs more than the 4-ray probe
-    // and the rays it saves: measured in docs/FORMFACTORS.md).
-    if !probe && cutting.len() <= ctx.params.exact_blockers {
+    // and the rays it saves: measured in docs/FORMFACTORS.md). A cut-out blocker has holes
+    // the clipping cannot see: its shadow is sampled.
+    if !probe
+        && cutting.len() <= ctx.params.exact_blockers
+        && !cutting.iter().any(|&k| ctx.bvh.is_cut(k))
+    {
         let blockers: Vec<Vec<DVec3>> = cutting
             .iter()
             .map(|&k| ctx.bvh.stored_triangle(k).to_vec())

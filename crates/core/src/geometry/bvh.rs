@@ -11,7 +11,13 @@
 //! size gives the same answers, not answers that differ wherever `f32` rounds `0.45` and
 //! `0.00045` differently (a visibility decision flipped between scales).
 
-use super::{Aabb, Ray, shaft::Shaft};
+use std::sync::Arc;
+
+use super::{
+    Aabb, Ray,
+    alpha_mask::{AlphaMask, CutOut},
+    shaft::Shaft,
+};
 use glam::{DVec3, Vec3};
 
 mod build;
@@ -38,7 +44,12 @@ struct Tri {
     e2: Vec3,
     id: u32,
     cull_back: bool,
+    /// Index into [`Bvh::cuts`], or [`NO_CUT`] for a triangle that is opaque everywhere.
+    cut: u32,
 }
+
+/// [`Tri::cut`] of a triangle without a cut-out.
+const NO_CUT: u32 = u32::MAX;
 
 /// A closest-hit result.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -62,6 +73,8 @@ pub struct TriangleInput {
     pub vertices: [DVec3; 3],
     pub id: u32,
     pub cull_back: bool,
+    /// Where the triangle is a hole (alpha map): rays pass there ([`Bvh::build_with_masks`]).
+    pub cut: Option<CutOut>,
 }
 
 /// Bounding-volume hierarchy over triangles.
@@ -73,6 +86,9 @@ pub struct Bvh {
     origin: DVec3,
     /// World length of one normalised unit (the input's bounding-box diagonal).
     scale: f64,
+    /// The cut-outs of the triangles that have one, and the masks they read.
+    cuts: Vec<CutOut>,
+    masks: Arc<[AlphaMask]>,
 }
 
 impl Default for Bvh {
@@ -82,13 +98,22 @@ impl Default for Bvh {
             tris: Vec::new(),
             origin: DVec3::ZERO,
             scale: 1.0,
+            cuts: Vec::new(),
+            masks: Arc::new([]),
         }
     }
 }
 
 impl Bvh {
     /// Builds the hierarchy. Degenerate (zero-area) triangles are kept but never hit.
+    /// Triangles are opaque everywhere (their [`TriangleInput::cut`] is ignored).
     pub fn build(input: &[TriangleInput]) -> Bvh {
+        Bvh::build_with_masks(input, Arc::new([]))
+    }
+
+    /// [`Bvh::build`] with cut-outs: a triangle whose `cut` names one of `masks` is a hole
+    /// wherever that mask is transparent, for every query. A `cut` naming no mask is ignored.
+    pub fn build_with_masks(input: &[TriangleInput], masks: Arc<[AlphaMask]>) -> Bvh {
         let n = input.len();
         if n == 0 {
             return Bvh::default();
@@ -130,18 +155,27 @@ impl Bvh {
         build_rec(&mut nodes, &mut idx, 0, n, &boxes, &centers);
         drop((boxes, centers));
         nodes.shrink_to_fit();
+        let mut cuts = Vec::new();
         let tris = idx
             .iter()
             .map(|&i| {
                 let t = &input[i as usize];
                 let v = local(t);
                 let v0 = v[0].as_vec3();
+                let cut = match t.cut {
+                    Some(c) if (c.mask as usize) < masks.len() => {
+                        cuts.push(c);
+                        cuts.len() as u32 - 1
+                    }
+                    _ => NO_CUT,
+                };
                 Tri {
                     v0,
                     e1: v[1].as_vec3() - v0,
                     e2: v[2].as_vec3() - v0,
                     id: t.id,
                     cull_back: t.cull_back,
+                    cut,
                 }
             })
             .collect();
@@ -150,6 +184,8 @@ impl Bvh {
             tris,
             origin,
             scale,
+            cuts,
+            masks,
         }
     }
 
@@ -173,6 +209,26 @@ impl Bvh {
         self.tris.len()
     }
 
+    /// Whether a hit at barycentrics `(u, v)` of `tri` falls in a hole of its cut-out.
+    #[inline]
+    fn is_hole(&self, tri: &Tri, u: f32, v: f32) -> bool {
+        if tri.cut == NO_CUT {
+            return false;
+        }
+        let c = &self.cuts[tri.cut as usize];
+        !self.masks[c.mask as usize].opaque(c.uv_at(u, v))
+    }
+
+    /// Whether any triangle has a cut-out.
+    pub fn has_cutouts(&self) -> bool {
+        !self.cuts.is_empty()
+    }
+
+    /// Whether stored triangle `k` has a cut-out (holes that rays pass).
+    pub fn is_cut(&self, k: u32) -> bool {
+        self.tris.get(k as usize).is_some_and(|t| t.cut != NO_CUT)
+    }
+
     /// Closest hit with `t` in `(t_min, t_max)`.
     pub fn closest_hit(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
         if self.nodes.is_empty() {
@@ -192,7 +248,9 @@ impl Bvh {
                 let first = nd.first_or_right as usize;
                 for k in first..first + nd.count as usize {
                     let tri = &self.tris[k];
-                    if let Some((t, u, v, front)) = intersect(tri, o, d, t_min as f32, best_t) {
+                    if let Some((t, u, v, front)) = intersect(tri, o, d, t_min as f32, best_t)
+                        && !self.is_hole(tri, u, v)
+                    {
                         best_t = t;
                         best = Some((k as u32, u, v, front));
                     }
@@ -282,7 +340,9 @@ impl Bvh {
                         // Shadow rays ignore culling: a back face still blocks light.
                         let mut t = *tri;
                         t.cull_back = false;
-                        if intersect(&t, o, d, t_min, t_max).is_some() {
+                        if let Some((_, u, v, _)) = intersect(&t, o, d, t_min, t_max)
+                            && !self.is_hole(tri, u, v)
+                        {
                             return true;
                         }
                     }
@@ -374,7 +434,7 @@ impl Bvh {
         candidates.iter().any(|&k| {
             let mut t = self.tris[k as usize];
             t.cull_back = false;
-            intersect(&t, o, d, t_min, t_max).is_some()
+            intersect(&t, o, d, t_min, t_max).is_some_and(|(_, u, v, _)| !self.is_hole(&t, u, v))
         })
     }
 }

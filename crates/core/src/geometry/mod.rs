@@ -5,11 +5,13 @@
 //! scene's bounding box (so its rounding does not depend on the unit); queries take and
 //! return `f64`.
 
+pub mod alpha_mask;
 pub mod bvh;
 pub mod polygon;
 pub mod sampling;
 pub mod shaft;
 
+pub use alpha_mask::{AlphaMask, CutOut};
 pub use bvh::{Bvh, Hit};
 pub use sampling::Rng;
 

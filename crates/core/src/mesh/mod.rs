@@ -30,9 +30,9 @@ use std::ops::Range;
 
 use glam::DVec3;
 
-use crate::geometry::Aabb;
 use crate::geometry::bvh::TriangleInput;
 use crate::geometry::polygon;
+use crate::geometry::{Aabb, Bvh};
 use crate::scene::{MaterialId, Scene};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -414,7 +414,17 @@ impl Mesh {
         scene: &Scene,
         keep: impl Fn(&crate::scene::Face) -> bool,
     ) -> Vec<TriangleInput> {
+        self.blocker_input(scene, keep).0
+    }
+
+    /// The blockers with the face of each triangle.
+    fn blocker_input(
+        &self,
+        scene: &Scene,
+        keep: impl Fn(&crate::scene::Face) -> bool,
+    ) -> (Vec<TriangleInput>, Vec<usize>) {
         let mut out = Vec::new();
+        let mut faces = Vec::new();
         for (i, f) in scene.faces.iter().enumerate().filter(|(_, f)| keep(f)) {
             let v = &f.vertices;
             for t in polygon::triangulate(v) {
@@ -422,10 +432,40 @@ impl Mesh {
                     vertices: [v[t[0]], v[t[1]], v[t[2]]],
                     id: self.face_occluder[i],
                     cull_back: false,
+                    cut: None,
                 });
+                faces.push(i);
             }
         }
-        out
+        (out, faces)
+    }
+
+    /// The hierarchy over [`Mesh::blocker_triangles`] of the faces `keep` accepts, with the
+    /// scene's cut-outs as holes ([`Scene::cutouts`]).
+    pub fn blocker_bvh_where(
+        &self,
+        scene: &Scene,
+        keep: impl Fn(&crate::scene::Face) -> bool,
+    ) -> Bvh {
+        let (mut input, faces) = self.blocker_input(scene, keep);
+        let cuts = scene.cutouts();
+        cuts.mark(scene, &mut input, |i| faces[i]);
+        cuts.bvh(&input)
+    }
+
+    /// [`Mesh::blocker_bvh_where`] of every face.
+    pub fn blocker_bvh(&self, scene: &Scene) -> Bvh {
+        self.blocker_bvh_where(scene, |_| true)
+    }
+
+    /// The hierarchy over [`Mesh::display_triangles`], with the scene's cut-outs as holes.
+    pub fn display_bvh(&self, scene: &Scene, two_sided: bool) -> Bvh {
+        let mut input = self.display_triangles(two_sided);
+        let cuts = scene.cutouts();
+        cuts.mark(scene, &mut input, |i| {
+            self.elements[self.triangle_element[i].0 as usize].face as usize
+        });
+        cuts.bvh(&input)
     }
 
     /// Display triangles (ids = index into `triangles`); back faces are culled for
@@ -442,6 +482,7 @@ impl Mesh {
                 ],
                 id: i as u32,
                 cull_back: two_sided,
+                cut: None,
             })
             .collect()
     }

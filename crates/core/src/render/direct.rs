@@ -158,7 +158,10 @@ impl<'a> DirectLight<'a> {
                         sum += l.emission * f;
                         continue;
                     }
-                    if cutting.len() <= EXACT_BLOCKERS {
+                    // A cut-out's holes are not in its triangle: its shadow is sampled.
+                    if cutting.len() <= EXACT_BLOCKERS
+                        && !cutting.iter().any(|&k| self.blockers.is_cut(k))
+                    {
                         let blockers: Vec<Vec<DVec3>> = cutting
                             .iter()
                             .map(|&k| self.blockers.stored_triangle(k).to_vec())

@@ -107,7 +107,7 @@ pub fn per_unit_texture(scene: &Scene, mesh: &Mesh, texture: &[Rgb], radiance: &
 
 /// BVH over the mesh's display triangles (ids = display triangle index).
 pub fn display_bvh(scene: &Scene, mesh: &Mesh) -> Bvh {
-    Bvh::build(&mesh.display_triangles(scene.two_sided))
+    mesh.display_bvh(scene, scene.two_sided)
 }
 
 /// What a camera ray sees first.
@@ -320,6 +320,7 @@ pub fn error_mask(scene: &Scene, camera: &Camera, width: u32, height: u32) -> Ve
                 vertices: [f.vertices[t[0]], f.vertices[t[1]], f.vertices[t[2]]],
                 id: k as u32,
                 cull_back: false,
+                cut: None,
             });
         }
     }

@@ -49,6 +49,10 @@ pub struct PathTracer<'a> {
     epsilon: f64,
     /// The scene's suns and point lights, and its sky's radiance.
     punctual: Vec<crate::scene::Light>,
+    /// The opaque faces alone and a pane's transmittance, when the scene has glass: a
+    /// shadow ray to a sun or point light that only glass stops carries the transmittance,
+    /// as in the solve ([`crate::formfactor::lights::GlassVisibility`]).
+    windows: Option<(Bvh, f64)>,
     sky: Rgb,
     /// Whether light may pass a mirror or glass after a diffuse bounce (see
     /// [`PathTracer::without_caustics`]).
@@ -71,6 +75,7 @@ impl<'a> PathTracer<'a> {
                     vertices: v,
                     id: tri_face.len() as u32,
                     cull_back: false,
+                    cut: None,
                 });
                 tri_face.push((fi, n));
                 if m.is_emitter() {
@@ -95,9 +100,30 @@ impl<'a> PathTracer<'a> {
             light_cdf.iter_mut().for_each(|c| *c /= acc);
         }
         let epsilon = 1e-6 * scene.bounds().diagonal().max(1e-12);
+        // Cut-outs are holes for every path's rays, as for the solve's.
+        let cuts = scene.cutouts();
+        cuts.mark(scene, &mut input, |i| tri_face[i].0);
+        let glass_of =
+            |i: &usize| match scene.materials[scene.faces[*i].material.0 as usize].surface {
+                Surface::Glass { ior } => Some(ior),
+                _ => None,
+            };
+        let windows = tri_face.iter().find_map(|(fi, _)| glass_of(fi)).map(|ior| {
+            let opaque: Vec<TriangleInput> = input
+                .iter()
+                .zip(&tri_face)
+                .filter(|(_, (fi, _))| glass_of(fi).is_none())
+                .map(|(t, _)| *t)
+                .collect();
+            (
+                cuts.bvh(&opaque),
+                crate::formfactor::lights::slab_transmittance(ior),
+            )
+        });
         PathTracer {
             scene,
-            bvh: Bvh::build(&input),
+            bvh: cuts.bvh(&input),
+            windows,
             tri_face,
             lights,
             light_cdf,
@@ -279,10 +305,13 @@ impl<'a> PathTracer<'a> {
         let origin = x + n * self.epsilon;
         let u = (rng.next_f64(), rng.next_f64());
         crate::scene::lights::punctual_incident(&self.punctual, x, n, u, &|d, t| {
-            if self.bvh.any_hit(&Ray::new(origin, d), 1e-9, t) {
-                0.0
-            } else {
-                1.0
+            let ray = Ray::new(origin, d);
+            if !self.bvh.any_hit(&ray, 1e-9, t) {
+                return 1.0;
+            }
+            match &self.windows {
+                Some((opaque, transmittance)) if !opaque.any_hit(&ray, 1e-9, t) => *transmittance,
+                _ => 0.0,
             }
         })
     }

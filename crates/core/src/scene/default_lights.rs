@@ -37,16 +37,21 @@ pub fn default_sun_direction() -> DVec3 {
 
 fn face_bvh(scene: &Scene) -> Bvh {
     let mut input = Vec::new();
-    for f in &scene.faces {
+    let mut faces = Vec::new();
+    for (i, f) in scene.faces.iter().enumerate() {
         for t in polygon::triangulate(&f.vertices) {
             input.push(TriangleInput {
                 vertices: [f.vertices[t[0]], f.vertices[t[1]], f.vertices[t[2]]],
                 id: input.len() as u32,
                 cull_back: false,
+                cut: None,
             });
+            faces.push(i);
         }
     }
-    Bvh::build(&input)
+    let cuts = scene.cutouts();
+    cuts.mark(scene, &mut input, |i| faces[i]);
+    cuts.bvh(&input)
 }
 
 /// Area-weighted fraction of cosine-distributed rays from the faces' lit sides that hit

@@ -18,6 +18,7 @@
 //! first (errors name `file:line`), then parsed by `tobj`, then the geometry is checked.
 
 mod camera;
+pub mod cutouts;
 mod default_lights;
 pub mod file;
 pub mod gallery;

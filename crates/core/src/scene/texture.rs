@@ -251,6 +251,18 @@ impl Texture {
         !self.coverage.is_empty()
     }
 
+    /// The full-resolution texels with alpha ≥ [`OPAQUE_ALPHA`], for ray tests; `None` when
+    /// every texel is opaque.
+    pub fn alpha_mask(&self) -> Option<crate::geometry::AlphaMask> {
+        if !self.has_cutouts() {
+            return None;
+        }
+        let l = &self.levels[0];
+        Some(crate::geometry::AlphaMask::new(l.w, l.h, |x, y| {
+            l.texels[l.index(x as i64, y as i64)][3] >= OPAQUE_ALPHA
+        }))
+    }
+
     /// Bilinear linear RGBA at `uv` (repeating; `v` = 0 at the bottom row). A non-finite
     /// `uv` reads the mean.
     pub fn sample(&self, uv: DVec2) -> [f64; 4] {

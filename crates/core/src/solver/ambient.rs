@@ -69,7 +69,7 @@ impl RegionalAmbient {
                 region_elements[patch_region[e.patch.0 as usize] as usize].push(j as u32);
             }
         }
-        let bvh = Bvh::build(&mesh.display_triangles(problem.scene.two_sided));
+        let bvh = mesh.display_bvh(&problem.scene, problem.scene.two_sided);
         let rays = (TOTAL_RAYS / region_count.max(1)).max(MIN_RAYS);
         let epsilon = problem.epsilon;
         let links = region_elements

@@ -95,6 +95,8 @@ pub struct Problem {
     /// Per element, the mean colour of its material's diffuse texture over the element
     /// (what `Kd` is multiplied by); empty when no material has a texture.
     element_texture: Vec<Rgb>,
+    /// Per element, the opaque fraction of a cut-out material (empty when none has holes).
+    element_coverage: Vec<f64>,
     /// The same, area-averaged over each patch.
     patch_texture: Vec<Rgb>,
     /// Wall-clock seconds of each setup phase (meshing, BVH, textures, lights), in order.
@@ -155,7 +157,7 @@ impl Problem {
     pub fn with_mesh(scene: Scene, config: SolverConfig, mesh: Mesh) -> Result<Self, SolverError> {
         check_power(&scene.materials, &mesh)?;
         let mut clock = PhaseClock::start();
-        let bvh = Bvh::build(&mesh.blocker_triangles(&scene));
+        let bvh = mesh.blocker_bvh(&scene);
         clock.lap("bvh");
         let epsilon = 1e-6 * mesh.bounds().diagonal().max(1e-12);
         let mut problem = Self {
@@ -168,6 +170,7 @@ impl Problem {
             glass: std::sync::OnceLock::new(),
             patch_external: Vec::new(),
             element_texture: Vec::new(),
+            element_coverage: Vec::new(),
             patch_texture: Vec::new(),
             setup_seconds: Vec::new(),
         };
@@ -180,17 +183,27 @@ impl Problem {
     }
 
     /// Computes each element's and patch's mean texture colour (Kd's multiplier): the
-    /// texture's mean over the element's area, in texture space.
+    /// texture's mean over the element's area, in texture space, times the element's opaque
+    /// fraction where its material has cut-outs. A cut-out element keeps its whole outline
+    /// as a receiver (rays through its holes reach what is behind it) but reflects and
+    /// sends only from its opaque part: the power it sends, `ρ H A c`, is what an element of
+    /// area `c A` would send, and the display divides by this same mean, so an opaque pixel
+    /// shows `Kd · texel · H`.
     fn texture_elements(&mut self) {
         use rayon::prelude::*;
-        let textured = self.scene.materials.iter().any(|m| m.diffuse_map.is_some());
+        let textured = self
+            .scene
+            .materials
+            .iter()
+            .any(|m| m.diffuse_map.is_some() || m.alpha_map.is_some());
+        self.element_coverage = Vec::new();
         if !textured {
             self.element_texture = Vec::new();
             self.patch_texture = Vec::new();
             return;
         }
         let scene = &self.scene;
-        self.element_texture = self
+        let means: Vec<(Rgb, f64)> = self
             .mesh
             .elements
             .par_iter()
@@ -198,11 +211,15 @@ impl Problem {
                 // A degenerate element's mean can be undefined: it keeps its Kd.
                 scene
                     .texture_mean(e.face as usize, e.corners())
-                    .map(|t| t.rgb)
-                    .filter(|t| t.is_finite())
-                    .unwrap_or(Rgb::ONE)
+                    .map(|t| (t.rgb * t.coverage, t.coverage))
+                    .filter(|(t, c)| t.is_finite() && c.is_finite())
+                    .unwrap_or((Rgb::ONE, 1.0))
             })
             .collect();
+        self.element_texture = means.iter().map(|m| m.0).collect();
+        if means.iter().any(|m| m.1 < 1.0) {
+            self.element_coverage = means.iter().map(|m| m.1).collect();
+        }
         self.patch_texture = self.patch_means(&self.element_texture);
     }
 
@@ -227,6 +244,12 @@ impl Problem {
     /// Per element, the mean of its diffuse texture (empty when nothing is textured).
     pub fn element_texture(&self) -> &[Rgb] {
         &self.element_texture
+    }
+
+    /// The opaque fraction of element `e` (1 unless its material has cut-outs): the share
+    /// of the light arriving over its outline that it intercepts; the rest passes its holes.
+    pub fn element_coverage(&self, e: usize) -> f64 {
+        self.element_coverage.get(e).copied().unwrap_or(1.0)
     }
 
     /// Reflectance of patch `p`: its material's `Kd` times its texture's mean.
@@ -317,7 +340,7 @@ impl Problem {
             Mesh::build_with(&self.scene, element_size, patch)?
         };
         check_power(&self.scene.materials, &mesh)?;
-        self.bvh = Bvh::build(&mesh.blocker_triangles(&self.scene));
+        self.bvh = mesh.blocker_bvh(&self.scene);
         self.mesh = mesh;
         self.config.element_size = Some(element_size);
         self.external = ExternalLight::default();

@@ -21,11 +21,20 @@ use super::problem::Problem;
 /// (the row sum of a closed scene is 1 to the centroid rule's O(h²) error, ~1e-3 here, which
 /// is left alone: clipping it would bias every closed scene dark), so this changes only
 /// rows that break it grossly, and scales them back to delivering exactly the shot.
+/// A cut-out element intercepts only its opaque fraction of what reaches its outline (the
+/// rest passes its holes and is in the row again, at what lies behind), so it counts at
+/// that fraction of its area.
 const MAX_ROW_GAIN: f64 = 1.01;
 
-fn conserve_energy(mesh: &Mesh, shooter: PatchId, row: &mut [f32]) {
+fn conserve_energy(problem: &Problem, shooter: PatchId, row: &mut [f32]) {
+    let mesh = &problem.mesh;
     let area = mesh.patch(shooter).area;
-    let delivered = delivered(mesh, row);
+    let delivered: f64 = row
+        .iter()
+        .zip(&mesh.elements)
+        .enumerate()
+        .map(|(j, (f, e))| f64::from(*f) * e.area * problem.element_coverage(j))
+        .sum();
     if area > 0.0 && delivered > MAX_ROW_GAIN * area {
         let k = (area / delivered) as f32;
         row.iter_mut().for_each(|f| *f *= k);
@@ -101,7 +110,7 @@ impl RowCache {
         if !formfactor::compute_row(problem.config.method, &ctx, shooter, &mut out, cancel) {
             return None;
         }
-        conserve_energy(&problem.mesh, shooter, &mut out);
+        conserve_energy(problem, shooter, &mut out);
         let row: Arc<[f32]> = out.into();
         let bytes = row.len() * 4;
         let budget = problem.cache_bytes();

@@ -95,11 +95,13 @@ mod tests {
                 vertices: [v[0], v[1], v[2]],
                 id: 0,
                 cull_back: false,
+                cut: None,
             },
             TriangleInput {
                 vertices: [v[0], v[2], v[3]],
                 id: 1,
                 cull_back: false,
+                cut: None,
             },
         ]);
         let camera = Camera {

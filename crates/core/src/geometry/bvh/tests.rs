@@ -12,6 +12,7 @@ fn brute_closest(bvh: &Bvh, tris: &[TriangleInput], ray: &Ray) -> Option<(f64, u
             e2: bvh.local_point(t.vertices[2]) - v0,
             id: k as u32,
             cull_back: t.cull_back,
+            cut: NO_CUT,
         };
         let limit = best.map_or(f32::INFINITY, |b| b.0 as f32);
         let (o, d) = (bvh.local_point(ray.origin), bvh.local_dir(ray.dir));
@@ -34,6 +35,7 @@ fn bvh_matches_brute_force() {
                 vertices: [v(), v(), v()],
                 id: i,
                 cull_back: false,
+                cut: None,
             }
         })
         .collect();
@@ -87,6 +89,7 @@ fn the_same_scene_in_another_unit_gives_the_same_answers() {
                 }),
                 id: i as u32,
                 cull_back: false,
+                cut: None,
             })
             .collect();
         Bvh::build(&input)
@@ -143,6 +146,7 @@ fn culling_and_front_flag() {
         vertices: [DVec3::ZERO, DVec3::X, DVec3::Y],
         id: 9,
         cull_back: true,
+        cut: None,
     };
     let bvh = Bvh::build(&[tri]);
     let down = Ray::new(DVec3::new(0.2, 0.2, 1.0), DVec3::NEG_Z);
