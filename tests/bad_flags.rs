@@ -357,16 +357,19 @@ fn solver_flags_are_checked() {
         &with(&["--solver", "cg", "--omega", "1.5"]),
         "--omega is the relaxation factor of --solver sor",
     );
+    refused(&with(&["--omega", "1.5"]), "does nothing for --solver auto");
     refused(
-        &with(&["--omega", "1.5"]),
+        &with(&["--solver", "shooting", "--omega", "1.5"]),
         "does nothing for --solver shooting",
     );
     refused(
         &with(&["--solver", "hierarchical", "--link-tolerance", "0"]),
         "--link-tolerance must be a positive number",
     );
+    // Under the default (auto), --link-tolerance chooses the hierarchy; a solver that has no
+    // links refuses it.
     refused(
-        &with(&["--link-tolerance", "0.01"]),
+        &with(&["--solver", "shooting", "--link-tolerance", "0.01"]),
         "--link-tolerance is the refinement threshold of --solver hierarchical",
     );
     refused(&with(&["--tolerance", "0"]), "--tolerance");

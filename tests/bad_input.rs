@@ -229,7 +229,7 @@ fn the_cli_reports_bad_input_without_panicking() {
                 "--element-size",
                 "0.001",
             ],
-            "use a larger --element-size",
+            "or larger, or --max-memory",
         ),
         (
             vec![

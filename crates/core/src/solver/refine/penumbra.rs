@@ -11,6 +11,9 @@
 //! of the scene's mean), as the radiance indicator would if it could see between centroids.
 //! Lights: the [`MAX_LIGHTS`] emitting patches of most power, each with at least 1 % of the
 //! total.
+//! Suns and point lights: one shadow ray from each corner (through windows at their
+//! transmittance, as the solve sees them); where the direct light they give the corners
+//! differs by more than `tolerance` times the element's radiance, a shadow edge crosses it.
 //! Known error: a blocker passing between all 20 rays is missed (a sliver of shadow).
 
 use rayon::prelude::*;
@@ -115,7 +118,7 @@ pub fn penumbra_bases(problem: &Problem, radiance: &[Rgb], tolerance: f64) -> Ve
                     }
                 }
                 (high - low) * most > tolerance * shown
-            })
+            }) || punctual_edge(problem, e, own, rho, tolerance * shown)
         })
         .collect();
     let mut out = vec![false; bases];
@@ -125,6 +128,44 @@ pub fn penumbra_bases(problem: &Problem, radiance: &[Rgb], tolerance: f64) -> Ve
         }
     }
     out
+}
+
+/// Whether a sun or point light lights the corners of element `e` differently, by more than
+/// `threshold` in reflected radiance (channel sum).
+fn punctual_edge(
+    problem: &Problem,
+    e: &crate::mesh::Element,
+    own: u32,
+    rho: Rgb,
+    threshold: f64,
+) -> bool {
+    let lights = crate::scene::lights::punctual(&problem.scene.lights);
+    if lights.is_empty() {
+        return false;
+    }
+    let glass = problem.glass();
+    let corners: Vec<DVec3> = e
+        .corners()
+        .iter()
+        .map(|&p| p + (e.centroid - p) * 0.01)
+        .collect();
+    lights.iter().any(|light| {
+        let (mut low, mut high) = (f64::INFINITY, f64::NEG_INFINITY);
+        for &x in &corners {
+            let origin = x + e.normal * problem.epsilon;
+            let lit = crate::scene::lights::punctual_incident(
+                std::slice::from_ref(light),
+                origin,
+                e.normal,
+                (0.5, 0.5),
+                &|d, t| glass.visibility(&problem.bvh, &Ray::new(origin, d), t, [own, own]),
+            );
+            let shown = channel_sum(rho * lit);
+            low = low.min(shown);
+            high = high.max(shown);
+        }
+        high - low > threshold
+    })
 }
 
 #[cfg(test)]
@@ -181,6 +222,66 @@ mod tests {
                 assert!(
                     !crossed[b],
                     "floor patch {p} ({lo}..{hi}) is all lit or all shaded"
+                );
+                off_edge += 1;
+            }
+        }
+        assert!(
+            on_edge >= 4 && off_edge >= 4,
+            "{on_edge} on, {off_edge} off"
+        );
+    }
+
+    /// The same floor and plate under a sun (no emitting face) from direction (0.3, 0, 1):
+    /// the plate's edge at x = 1.625, 1 above the floor, casts the sun's shadow edge at
+    /// x = 1.325, inside the patches 0.8125–1.625 (the mesher cuts the floor under the
+    /// plate's edge); the patches it crosses are marked, those wholly lit or shaded are not.
+    #[test]
+    fn a_suns_shadow_edge_marks_the_patches_it_crosses() {
+        let obj = "mtllib s.mtl\n\
+            v 0 0 0\nv 4 0 0\nv 4 4 0\nv 0 4 0\nusemtl floor\nf 1 2 3 4\n\
+            v -1 -1 1\nv -1 5 1\nv 1.625 5 1\nv 1.625 -1 1\nusemtl plate\nf 5 6 7 8\n";
+        let mtl = "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl plate\nKd 0 0 0\n";
+        let mut scene =
+            Scene::from_obj_str("s.obj", obj, &[("s.mtl", mtl)], &LoadOptions::default())
+                .expect("scene");
+        scene.lights.push(crate::scene::Light::Sun {
+            direction: DVec3::new(0.3, 0.0, 1.0).normalize(),
+            irradiance: Rgb::splat(3.0),
+            angular_radius: 0.0,
+        });
+        let config = SolverConfig {
+            element_size: Some(0.5),
+            patch_size: Some(1.0),
+            ..Default::default()
+        };
+        let mut solver = SolverKind::Shooting
+            .build(Problem::new(scene, config).expect("problem"))
+            .expect("solver");
+        solve_to(solver.as_mut(), 1e-3);
+        let radiance = solver.element_radiance(false);
+        let problem = solver.problem();
+        let crossed = penumbra_bases(problem, &radiance, 0.1);
+        let mesh = &problem.mesh;
+        let (mut on_edge, mut off_edge) = (0, 0);
+        for (p, patch) in mesh.patches.iter().enumerate() {
+            if patch.normal.z < 0.99 || patch.centroid.z > 1e-9 {
+                continue;
+            }
+            let (lo, hi) = patch
+                .polygon
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                    (l.min(v.x), h.max(v.x))
+                });
+            let b = mesh.base_patch[p] as usize;
+            if lo < 1.325 && hi > 1.325 {
+                assert!(crossed[b], "floor patch {p} ({lo}..{hi}) holds the edge");
+                on_edge += 1;
+            } else if lo >= 1.625 || hi <= 1.0 {
+                assert!(
+                    !crossed[b],
+                    "floor patch {p} ({lo}..{hi}) is all lit or shaded"
                 );
                 off_edge += 1;
             }
