@@ -278,15 +278,10 @@ impl SceneFile {
             None => (None, Some(scene.name.clone())),
         };
         let mut lights: Vec<LightEntry> = scene.lights.iter().map(LightEntry::from).collect();
-        for f in scene.faces.iter().filter(|f| f.line == 0) {
-            let m = &scene.materials[f.material.0 as usize];
-            if m.name.starts_with("area light") {
-                lights.push(LightEntry::Area {
-                    corners: f.vertices.iter().map(|v| v.to_array()).collect(),
-                    radiance: m.emission.to_array(),
-                });
-            }
-        }
+        lights.extend(scene.area_lights().into_iter().map(|a| LightEntry::Area {
+            corners: a.corners.iter().map(|v| v.to_array()).collect(),
+            radiance: a.radiance.to_array(),
+        }));
         let materials = scene
             .materials
             .iter()
