@@ -73,6 +73,8 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
     ThreadConfig {
         solver: SolverConfig {
             element_size: options.element_size,
+            patch_size: options.patch_size,
+            max_elements: options.max_elements,
             method: options.method,
             raster: options.raster.clone(),
             discontinuity: options.discontinuity,
@@ -84,7 +86,9 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
         play: !options.paused && options.teach.is_none(),
         max_shots,
         shot_threads: options.solver_threads,
-        ..Default::default()
+        stop_unshot: options
+            .stop_unshot
+            .unwrap_or(ThreadConfig::default().stop_unshot),
     }
 }
 

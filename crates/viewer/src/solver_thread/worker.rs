@@ -416,8 +416,7 @@ impl Worker {
             } => self.set_material(material, Rgb::from(reflectance), Rgb::from(emission)),
             Command::SaveScene { path, camera } => {
                 if let Some(s) = self.solver.as_ref() {
-                    let scene = &s.problem().scene;
-                    let file = nusselt_core::scene::SceneFile::describe(scene, camera, &path);
+                    let file = self.scene_file(s.as_ref(), camera, &path);
                     match file.save(&path) {
                         Ok(()) => {
                             self.send_event(Event::Notice(format!("saved {}", path.display())))
@@ -474,6 +473,31 @@ impl Worker {
         }
         self.dirty = true;
         Flow::Continue
+    }
+
+    /// What "Save scene" writes: the scene as it is now, with the mesh's element size and
+    /// the solver settings in use.
+    fn scene_file(
+        &self,
+        solver: &dyn Solver,
+        camera: Option<nusselt_core::scene::Camera>,
+        path: &std::path::Path,
+    ) -> nusselt_core::scene::SceneFile {
+        use nusselt_core::scene::file::{MeshEntry, SolverEntry};
+        let problem = solver.problem();
+        let mut file = nusselt_core::scene::SceneFile::describe(&problem.scene, camera, path);
+        file.mesh = Some(MeshEntry {
+            element_size: Some(problem.mesh.element_size),
+            patch_size: problem.config.patch_size,
+            max_elements: problem.config.max_elements,
+            discontinuity: problem.config.discontinuity,
+        });
+        file.solver = Some(SolverEntry {
+            name: Some(self.kind.name().into()),
+            formfactor: Some(problem.config.method.name().into()),
+            unshot: Some(self.stop_unshot),
+        });
+        file
     }
 
     fn load(&mut self, mut scene: Scene) {
