@@ -365,6 +365,8 @@ pub struct Snapshot {
     pub materials: Arc<Vec<Material>>,
     /// The scene's skies, suns and point lights.
     pub lights: Arc<Vec<nusselt_core::scene::Light>>,
+    /// The scene's area lights (emitting faces of their own), radiance as now.
+    pub area_lights: Arc<Vec<nusselt_core::scene::AreaLight>>,
     /// Materials as loaded (for "reset edits" and showing what changed).
     pub loaded_materials: Arc<Vec<Material>>,
     pub history: Arc<Vec<HistoryPoint>>,

@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TryRecvError, TrySendError};
 use std::time::{Duration, Instant};
 
-use nusselt_core::scene::{LoadOptions, Material, MaterialId, Rgb, Scene};
+use nusselt_core::scene::{AreaLight, LoadOptions, Material, MaterialId, Rgb, Scene};
 use nusselt_core::solver::{Problem, Solver, SolverConfig, SolverKind};
 
 use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, vertex_reflectance};
@@ -93,6 +93,8 @@ pub(super) struct Worker {
     pub(super) ray_input_at: Option<Instant>,
     /// Adaptive refinement in progress (`adapt.rs`).
     pub(super) adapting: Option<super::adapt::Adapting>,
+    /// The scene's area lights, read for this (mesh id, reflectance revision).
+    pub(super) area_lights: ((u64, u64), Arc<Vec<AreaLight>>),
 }
 
 enum Flow {
@@ -160,6 +162,7 @@ impl Worker {
             ray_input_key: None,
             ray_input_at: None,
             adapting: None,
+            area_lights: ((0, 0), Arc::new(Vec::new())),
         }
     }
 
@@ -425,6 +428,7 @@ impl Worker {
                     }
                 }
             }
+            Command::SetAreaLights(lights) => self.set_area_lights(lights),
             Command::SetLights(lights) => {
                 if let Some(s) = self.solver.as_mut() {
                     s.set_lights(lights);
