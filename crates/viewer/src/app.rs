@@ -138,7 +138,7 @@ impl ViewerApp {
             messages: Vec::new(),
             solver_failure: None,
             show_plot: true,
-            lights_off: (0, Vec::new()),
+            lights: Default::default(),
         };
         let log_frames = options.automation.frame_log.is_some();
         let scripted_steps = match (options.teach, options.automation.screenshot.as_ref()) {
