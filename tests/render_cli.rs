@@ -291,3 +291,55 @@ fn the_auto_pass_follows_the_time_budget() {
         );
     }
 }
+
+/// A scene file's mesh and solver settings are `render`'s defaults: its element size
+/// reaches the mesh, and a flag given overrides it; a bad setting is refused by its path.
+#[test]
+fn scene_file_settings_are_defaults_that_flags_override() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let scene = d.join("box.json");
+    std::fs::write(
+        &scene,
+        r#"{"builtin": "cornell",
+            "mesh": {"element_size": 80, "patch_size": 160},
+            "solver": {"name": "shooting", "formfactor": "contour", "unshot": 0.01}}"#,
+    )
+    .expect("write scene");
+    let out = d.join("b.pfm");
+    let (scene, out) = (scene.to_str().expect("utf-8"), out.to_str().expect("utf-8"));
+    let run = |extra: &[&str]| -> serde_json::Value {
+        let mut args = vec![
+            "render", scene, "--width", "8", "--height", "8", "--spp", "1", "--pass", "vertex",
+            "--out", out, "--json", "--quiet",
+        ];
+        args.extend_from_slice(extra);
+        serde_json::from_str(nusselt(&args).trim()).expect("one JSON line")
+    };
+    let file = run(&[]);
+    assert_eq!(file["element_size"].as_f64(), Some(80.0), "{file}");
+    assert_eq!(file["patch_size"].as_f64(), Some(160.0), "{file}");
+    assert!(file["unshot_fraction"].as_f64().expect("number") <= 0.01);
+    let flag = run(&["--element-size", "40", "--unshot", "1e-4"]);
+    assert_eq!(flag["element_size"].as_f64(), Some(40.0), "{flag}");
+    let elements = |j: &serde_json::Value| j["elements"].as_u64().expect("elements");
+    assert!(elements(&flag) > 2 * elements(&file), "{flag} vs {file}");
+    assert!(flag["unshot_fraction"].as_f64().expect("number") <= 1e-4);
+
+    let bad = d.join("bad.json");
+    std::fs::write(
+        &bad,
+        r#"{"builtin": "cornell", "mesh": {"element_size": -3}}"#,
+    )
+    .expect("write");
+    let failed = Command::new(env!("CARGO_BIN_EXE_nusselt"))
+        .args(["render", bad.to_str().expect("utf-8"), "--out", out])
+        .output()
+        .expect("run nusselt");
+    let stderr = String::from_utf8_lossy(&failed.stderr);
+    assert!(!failed.status.success());
+    assert!(
+        stderr.contains("bad.json") && stderr.contains("mesh.element_size"),
+        "{stderr}"
+    );
+}

@@ -25,6 +25,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 
+use nusselt_core::scene::file::{MeshEntry, SolverEntry};
 use nusselt_core::scene::{Light, LoadOptions, Scene, SceneFile, is_scene_file};
 
 #[derive(Parser, Debug)]
@@ -131,6 +132,21 @@ impl SceneArgs {
             lights.push(Light::parse_point(point)?);
         }
         Ok(lights)
+    }
+
+    /// The mesh and solver settings of a scene file (none for a model or a built-in):
+    /// defaults that the flags override.
+    pub fn file_settings(&self) -> Result<(MeshEntry, SolverEntry)> {
+        match &self.scene {
+            Some(path) if is_scene_file(path) => {
+                let file = SceneFile::read(path)?;
+                Ok((
+                    file.mesh.unwrap_or_default(),
+                    file.solver.unwrap_or_default(),
+                ))
+            }
+            _ => Ok(Default::default()),
+        }
     }
 
     pub fn load(&self) -> Result<Scene> {

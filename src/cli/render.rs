@@ -25,7 +25,8 @@ pub struct RenderArgs {
     /// Output image: .pfm, .exr (linear) or .png (exposure + sRGB).
     #[arg(long)]
     pub out: PathBuf,
-    /// Element edge length in scene units (default: from the --max-elements budget).
+    /// Element edge length in scene units (default: a scene file's `mesh.element_size`, else
+    /// from the --max-elements budget).
     #[arg(long, allow_negative_numbers = true)]
     pub element_size: Option<f64>,
     /// Patch (shooter) edge length in scene units (default: 4 element sizes).
@@ -38,18 +39,20 @@ pub struct RenderArgs {
     /// Cast every shadow ray for every shooter (no 4-ray probe for non-emitters).
     #[arg(long)]
     pub full_visibility: bool,
-    /// Stop when remaining unshot power / emitted power falls to this.
-    #[arg(long, allow_negative_numbers = true, default_value_t = 1e-4)]
-    pub unshot: f64,
+    /// Stop when remaining unshot power / emitted power falls to this (default: a scene
+    /// file's `solver.unshot`, else 1e-4).
+    #[arg(long, allow_negative_numbers = true)]
+    pub unshot: Option<f64>,
     /// Shoot only the unshot radiance (no overshooting by the ambient estimate).
     #[arg(long)]
     pub no_overshoot: bool,
-    /// Solver: auto (default: shooting up to 100,000 elements or under --seconds, else
+    /// Solver: auto (shooting up to 100,000 elements or under --seconds, else
     /// hierarchical; the choice and its reason are printed), shooting (progressive
     /// refinement), jacobi, gauss-seidel, sor, cg (these four store the form-factor matrix;
-    /// --unshot is their relative residual), hierarchical or wavelet.
-    #[arg(long, default_value = "auto")]
-    pub solver: String,
+    /// --unshot is their relative residual), hierarchical or wavelet. Default: a scene
+    /// file's `solver.name`, else auto.
+    #[arg(long)]
+    pub solver: Option<String>,
     /// SOR relaxation factor in (0, 2) (default: estimated from the first sweeps).
     #[arg(long, allow_negative_numbers = true)]
     pub omega: Option<f64>,
@@ -120,9 +123,9 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Form-factor method: contour, exact, hemicube, raycast, montecarlo, hybrid or
-    /// gpu-hemicube.
-    #[arg(long, default_value = "contour")]
-    pub formfactor: String,
+    /// gpu-hemicube (default: a scene file's `solver.formfactor`, else contour).
+    #[arg(long)]
+    pub formfactor: Option<String>,
     /// Shadow rays per receiver-patch visibility estimate (montecarlo: point pairs per
     /// element).
     #[arg(long, default_value_t = 16)]
@@ -210,7 +213,19 @@ fn render(args: &RenderArgs) -> Result<()> {
             check_output(flag, p)?;
         }
     }
-    if !(args.unshot.is_finite() && args.unshot >= 0.0) {
+    // A scene file's mesh and solver settings are defaults; flags given win.
+    let (file_mesh, file_solver) = args.scene.file_settings()?;
+    let unshot = args.unshot.or(file_solver.unshot).unwrap_or(1e-4);
+    let solver_name = args.solver.as_deref().or(file_solver.name.as_deref());
+    let solver_name = solver_name.unwrap_or("auto");
+    let formfactor = args
+        .formfactor
+        .as_deref()
+        .or(file_solver.formfactor.as_deref());
+    let formfactor = formfactor.unwrap_or("contour");
+    let patch_size = args.patch_size.or(file_mesh.patch_size);
+    let max_elements = args.max_elements.or(file_mesh.max_elements);
+    if !(unshot.is_finite() && unshot >= 0.0) {
         bail!("--unshot must be a number >= 0");
     }
     if args.seconds.is_some_and(|s| !(s.is_finite() && s >= 0.0)) {
@@ -236,7 +251,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         other => bail!("unknown --ambient '{other}' (expected regional or global)"),
     };
     // `None`: auto, chosen once the mesh is known (solver::auto).
-    let asked = match args.solver.as_str() {
+    let asked = match solver_name {
         "auto" => None,
         name => Some(SolverKind::parse(name, args.omega).ok_or_else(|| {
             anyhow::anyhow!(
@@ -248,7 +263,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     if args.omega.is_some() && !matches!(asked, Some(SolverKind::Sor(_))) {
         bail!(
             "--omega is the relaxation factor of --solver sor; it does nothing for --solver {}",
-            args.solver
+            solver_name
         );
     }
     if let Some(t) = args.link_tolerance {
@@ -264,7 +279,7 @@ fn render(args: &RenderArgs) -> Result<()> {
             );
         }
     }
-    if let Some(p) = args.patch_size
+    if let Some(p) = patch_size
         && !(p.is_finite() && p > 0.0)
     {
         bail!("--patch-size must be a positive number, got {p}");
@@ -273,9 +288,9 @@ fn render(args: &RenderArgs) -> Result<()> {
     if args.exposure.is_some_and(|e| !(e.is_finite() && e > 0.0)) {
         bail!("--exposure must be a positive number");
     }
-    let method = parse_method("--formfactor", &args.formfactor)?;
+    let method = parse_method("--formfactor", formfactor)?;
     check_count("--rays", args.rays, MAX_RAYS)?;
-    if args.max_elements == Some(0) {
+    if max_elements == Some(0) {
         bail!("--max-elements must be at least 1");
     }
     args.method_args.check()?;
@@ -298,7 +313,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         None => None,
     };
     let config = SolverConfig {
-        element_size: args.element_size,
+        element_size: args.element_size.or(file_mesh.element_size),
         method,
         formfactor: FormFactorParams {
             visibility_rays: args.vis_rays,
@@ -307,8 +322,8 @@ fn render(args: &RenderArgs) -> Result<()> {
             rays: args.rays,
             ..args.method_args.params()
         },
-        patch_size: args.patch_size,
-        max_elements: args.max_elements,
+        patch_size,
+        max_elements,
         overshoot: !args.no_overshoot,
         regional_ambient,
         link_tolerance: args
@@ -316,7 +331,7 @@ fn render(args: &RenderArgs) -> Result<()> {
             .unwrap_or(nusselt_core::solver::DEFAULT_LINK_TOLERANCE),
         memory_bytes: max_memory_bytes(args.max_memory)?,
         raster: raster_for(method)?,
-        discontinuity: args.discontinuity,
+        discontinuity: args.discontinuity || file_mesh.discontinuity,
     };
     let adapter = config.raster.as_ref().map(|r| r.describe());
     let solve_start = Instant::now();
@@ -342,7 +357,7 @@ fn render(args: &RenderArgs) -> Result<()> {
                 kind,
                 tolerance,
                 args.adaptive_passes,
-                args.unshot,
+                unshot,
             )?;
             if let Some(why) = &refined.stopped {
                 eprintln!("note: {why}");
@@ -365,7 +380,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         );
     }
     let stop = StopCriteria {
-        unshot: args.unshot,
+        unshot,
         max_shots: args.shots,
         max_seconds: args
             .seconds

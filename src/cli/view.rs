@@ -18,7 +18,8 @@ use nusselt_viewer::{
 pub struct ViewCmdArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Element edge length (scene units); default 1/80 of the scene's diagonal.
+    /// Element edge length (scene units); default a scene file's `mesh.element_size`, else
+    /// 1/80 of the scene's diagonal.
     #[arg(long)]
     pub element_size: Option<f64>,
     /// Teaching mode: open the Teach panel on this view: step (one shot per click with its
@@ -34,11 +35,11 @@ pub struct ViewCmdArgs {
     /// Form-factor method (contour, exact, hemicube, raycast, montecarlo, hybrid, gpu-hemicube).
     #[arg(long = "formfactor", alias = "method")]
     pub method: Option<String>,
-    /// Solver: auto (default: shooting, whose image improves with every shot), shooting,
-    /// jacobi, gauss-seidel, sor, cg, hierarchical or wavelet, as in `nusselt render`; the
-    /// panel switches it later.
-    #[arg(long, default_value = "auto")]
-    pub solver: String,
+    /// Solver: auto (shooting, whose image improves with every shot), shooting, jacobi,
+    /// gauss-seidel, sor, cg, hierarchical or wavelet, as in `nusselt render` (default: a
+    /// scene file's `solver.name`, else auto); the panel switches it later.
+    #[arg(long)]
+    pub solver: Option<String>,
     /// SOR relaxation factor in (0, 2) (default: estimated from the first sweeps); only
     /// with --solver sor.
     #[arg(long, allow_negative_numbers = true)]
@@ -201,7 +202,10 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
     if scene_args.scene.is_none() && scene_args.builtin.is_none() {
         scene_args.builtin = Some("cornell".into());
     }
-    if let Some(s) = args.element_size
+    // A scene file's mesh and solver settings are defaults; flags given win.
+    let (file_mesh, file_solver) = scene_args.file_settings()?;
+    let element_size = args.element_size.or(file_mesh.element_size);
+    if let Some(s) = element_size
         && !(s.is_finite() && s > 0.0)
     {
         bail!("--element-size must be a positive number, got {s}");
@@ -211,11 +215,13 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
     {
         bail!("--adaptive must be a positive number (a fraction, e.g. 0.25), got {t}");
     }
-    let method = match &args.method {
+    let method = match args.method.as_ref().or(file_solver.formfactor.as_ref()) {
         Some(m) => super::method::parse_method("--formfactor", m)?,
         None => FormFactorMethod::Contour,
     };
-    let solver = parse_solver(&args.solver, args.omega)?;
+    let solver_name = args.solver.as_ref().or(file_solver.name.as_ref());
+    let solver_name = solver_name.map_or("auto", String::as_str);
+    let solver = parse_solver(solver_name, args.omega)?;
     let teach = match &args.teach {
         Some(name) => Some(TeachView::parse(name).with_context(|| {
             format!(
@@ -284,10 +290,13 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
     nusselt_viewer::run(ViewerOptions {
         scene,
         ui: UiOptions {
-            element_size: args.element_size,
+            element_size,
+            patch_size: file_mesh.patch_size,
+            max_elements: file_mesh.max_elements,
+            stop_unshot: file_solver.unshot,
             method,
             solver,
-            solver_reason: (args.solver == "auto").then(|| VIEWER_AUTO_REASON.to_string()),
+            solver_reason: (solver_name == "auto").then(|| VIEWER_AUTO_REASON.to_string()),
             teach,
             projector: args.projector,
             raster: super::method::raster_for(method)?,
@@ -300,7 +309,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
             ray_traced: args.ray_traced,
             textures: !args.no_textures,
             adaptive: args.adaptive,
-            discontinuity: args.discontinuity,
+            discontinuity: args.discontinuity || file_mesh.discontinuity,
             paused: args.paused,
             no_vsync: args.no_vsync,
             solver_threads: args.solver_threads,

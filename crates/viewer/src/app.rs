@@ -73,6 +73,8 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
     ThreadConfig {
         solver: SolverConfig {
             element_size: options.element_size,
+            patch_size: options.patch_size,
+            max_elements: options.max_elements,
             method: options.method,
             raster: options.raster.clone(),
             discontinuity: options.discontinuity,
@@ -84,7 +86,9 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
         play: !options.paused && options.teach.is_none(),
         max_shots,
         shot_threads: options.solver_threads,
-        ..Default::default()
+        stop_unshot: options
+            .stop_unshot
+            .unwrap_or(ThreadConfig::default().stop_unshot),
     }
 }
 
@@ -135,7 +139,7 @@ impl ViewerApp {
             messages: Vec::new(),
             solver_failure: None,
             show_plot: true,
-            lights_off: (0, Vec::new()),
+            lights: Default::default(),
         };
         let log_frames = options.automation.frame_log.is_some();
         let scripted_steps = match (options.teach, options.automation.screenshot.as_ref()) {

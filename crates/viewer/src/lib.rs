@@ -55,6 +55,12 @@ pub struct ViewerOptions {
 #[derive(Clone, Debug)]
 pub struct UiOptions {
     pub element_size: Option<f64>,
+    /// Patch size (`SolverConfig::patch_size`; a scene file's `mesh.patch_size`).
+    pub patch_size: Option<f64>,
+    /// Element budget when no element size is given (`SolverConfig::max_elements`).
+    pub max_elements: Option<usize>,
+    /// Stop below this residual (default: the solver thread's).
+    pub stop_unshot: Option<f64>,
     pub method: FormFactorMethod,
     /// The solver to start with (`--solver`).
     pub solver: nusselt_core::solver::SolverKind,

@@ -45,6 +45,8 @@ pub enum Action {
         ke: [f64; 3],
     },
     SetLights(Vec<nusselt_core::scene::Light>),
+    /// The whole new list of area lights (a re-mesh).
+    SetAreaLights(Vec<nusselt_core::scene::AreaLight>),
     Quit,
 }
 
@@ -119,9 +121,8 @@ pub struct PanelState {
     /// The solver panicked (the image is the last one it published).
     pub solver_failure: Option<String>,
     pub show_plot: bool,
-    /// Lights switched off in the Lights panel (kept to switch on again), and the scene
-    /// they belong to.
-    pub lights_off: (u64, Vec<nusselt_core::scene::Light>),
+    /// The Lights panel's own state (lights switched off, the area-light form, placing).
+    pub lights: crate::lights_panel::LightsPanel,
 }
 
 pub fn menu_bar(ui: &mut egui::Ui, state: &PanelState, actions: &mut Vec<Action>) {
@@ -215,7 +216,7 @@ pub fn side_panel(
             }
             ui.checkbox(&mut state.show_plot, "convergence plot");
             ui.separator();
-            crate::lights_panel::lights_section(ui, &mut state.lights_off, s, actions);
+            crate::lights_panel::lights_section(ui, &mut state.lights, s, actions);
             ui.separator();
             selection_section(ui, state, s, actions);
         } else {

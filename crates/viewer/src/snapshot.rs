@@ -288,6 +288,22 @@ impl Geometry {
             .map(|&p| PatchId(p))
     }
 
+    /// The surface point seen along a ray and its unit normal on the side the ray came
+    /// from (the display triangle's, from the drawn positions).
+    pub fn pick_surface(&self, origin: DVec3, dir: DVec3) -> Option<(DVec3, DVec3)> {
+        let ray = nusselt_core::geometry::Ray::new(origin, dir);
+        let hit = self.bvh.closest_hit(&ray, 0.0, f64::INFINITY)?;
+        let k = 3 * hit.id as usize;
+        let corner = |i: usize| -> Option<DVec3> {
+            let v = *self.indices.get(k + i)? as usize;
+            Some(glam::Vec3::from_array(*self.positions.get(v)?).as_dvec3())
+        };
+        let (a, b, c) = (corner(0)?, corner(1)?, corner(2)?);
+        let point = a + (b - a) * hit.u + (c - a) * hit.v;
+        let n = (b - a).cross(c - a).try_normalize()?;
+        Some((point, if n.dot(dir) > 0.0 { -n } else { n }))
+    }
+
     /// The element seen along a ray (front faces only, as drawn).
     pub fn pick_element(&self, origin: DVec3, dir: DVec3) -> Option<u32> {
         let ray = nusselt_core::geometry::Ray::new(origin, dir);
@@ -366,6 +382,8 @@ pub struct Snapshot {
     pub materials: Arc<Vec<Material>>,
     /// The scene's skies, suns and point lights.
     pub lights: Arc<Vec<nusselt_core::scene::Light>>,
+    /// The scene's area lights (emitting faces of their own), radiance as now.
+    pub area_lights: Arc<Vec<nusselt_core::scene::AreaLight>>,
     /// Materials as loaded (for "reset edits" and showing what changed).
     pub loaded_materials: Arc<Vec<Material>>,
     pub history: Arc<Vec<HistoryPoint>>,

@@ -59,9 +59,22 @@ impl ViewerApp {
                 rect.width() as f64,
                 rect.height() as f64,
             );
-            actions.push(Action::Select(snap.geometry.pick(o, d).map(|p| p.0)));
-            if let Some(teach) = self.teach.as_mut() {
-                teach.element = snap.geometry.pick_element(o, d);
+            if self.panel.lights.is_placing() {
+                // The Lights panel asked for this click: place the light there.
+                if let Some((point, normal)) = snap.geometry.pick_surface(o, d) {
+                    crate::lights_panel::place_at(
+                        &mut self.panel.lights,
+                        &snap,
+                        point,
+                        normal,
+                        actions,
+                    );
+                }
+            } else {
+                actions.push(Action::Select(snap.geometry.pick(o, d).map(|p| p.0)));
+                if let Some(teach) = self.teach.as_mut() {
+                    teach.element = snap.geometry.pick_element(o, d);
+                }
             }
         }
         let view = &self.panel.view;

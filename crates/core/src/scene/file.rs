@@ -33,6 +33,105 @@ pub struct SceneFile {
     /// Material edits by name: `Kd` and/or `Ke`.
     #[serde(default)]
     pub materials: std::collections::BTreeMap<String, MaterialEntry>,
+    /// Meshing settings: defaults for `render` and `view`, which their flags override.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<MeshEntry>,
+    /// Solver settings: defaults for `render` and `view`, which their flags override.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solver: Option<SolverEntry>,
+}
+
+/// How the scene is meshed (as `--element-size`, `--patch-size`, `--max-elements` and
+/// `--discontinuity`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshEntry {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub element_size: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub patch_size: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_elements: Option<usize>,
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub discontinuity: bool,
+}
+
+/// How the scene is solved (as `--solver`, `--formfactor` and `--unshot`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverEntry {
+    /// A `--solver` name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// A `--formfactor` name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub formfactor: Option<String>,
+    /// The residual to stop at (for shooting, the unshot fraction).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unshot: Option<f64>,
+}
+
+impl MeshEntry {
+    /// Refuses values the mesher would refuse, naming the field (`mesh.…`).
+    fn check(&self, file: &Path) -> Result<(), SceneError> {
+        for (field, v) in [
+            ("element_size", self.element_size),
+            ("patch_size", self.patch_size),
+        ] {
+            if let Some(v) = v
+                && !(v.is_finite() && v > 0.0)
+            {
+                return Err(invalid(
+                    file,
+                    format!("mesh.{field}: {v} must be a positive number"),
+                ));
+            }
+        }
+        if self.max_elements == Some(0) {
+            return Err(invalid(file, "mesh.max_elements must be at least 1".into()));
+        }
+        Ok(())
+    }
+}
+
+impl SolverEntry {
+    /// Refuses unknown names and a negative residual, naming the field (`solver.…`).
+    fn check(&self, file: &Path) -> Result<(), SceneError> {
+        use crate::formfactor::FormFactorMethod;
+        use crate::solver::SolverKind;
+        if let Some(n) = &self.name
+            && n != "auto"
+            && SolverKind::parse(n, None).is_none()
+        {
+            return Err(invalid(
+                file,
+                format!(
+                    "solver.name: unknown solver '{n}' (expected auto or one of: {})",
+                    SolverKind::NAMES.join(", ")
+                ),
+            ));
+        }
+        if let Some(f) = &self.formfactor
+            && f.parse::<FormFactorMethod>().is_err()
+        {
+            return Err(invalid(
+                file,
+                format!(
+                    "solver.formfactor: unknown method '{f}' (available: {})",
+                    FormFactorMethod::names()
+                ),
+            ));
+        }
+        if let Some(u) = self.unshot
+            && !(u.is_finite() && u >= 0.0)
+        {
+            return Err(invalid(
+                file,
+                format!("solver.unshot: {u} must be a number >= 0"),
+            ));
+        }
+        Ok(())
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -201,17 +300,25 @@ impl LightEntry {
 }
 
 impl SceneFile {
-    /// Reads and checks a scene file (JSON errors name the line and column).
+    /// Reads and checks a scene file (JSON errors name the line and column; bad mesh and
+    /// solver settings name their field).
     pub fn read(path: &Path) -> Result<SceneFile, SceneError> {
         let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
             path: path.to_path_buf(),
             source,
         })?;
-        serde_json::from_str(&text).map_err(|e| SceneError::Parse {
+        let file: SceneFile = serde_json::from_str(&text).map_err(|e| SceneError::Parse {
             file: path.display().to_string(),
             line: e.line(),
             message: e.to_string(),
-        })
+        })?;
+        if let Some(m) = &file.mesh {
+            m.check(path)?;
+        }
+        if let Some(s) = &file.solver {
+            s.check(path)?;
+        }
+        Ok(file)
     }
 
     /// The scene it describes: the model loaded, then the edits and lights applied.
@@ -278,15 +385,10 @@ impl SceneFile {
             None => (None, Some(scene.name.clone())),
         };
         let mut lights: Vec<LightEntry> = scene.lights.iter().map(LightEntry::from).collect();
-        for f in scene.faces.iter().filter(|f| f.line == 0) {
-            let m = &scene.materials[f.material.0 as usize];
-            if m.name.starts_with("area light") {
-                lights.push(LightEntry::Area {
-                    corners: f.vertices.iter().map(|v| v.to_array()).collect(),
-                    radiance: m.emission.to_array(),
-                });
-            }
-        }
+        lights.extend(scene.area_lights().into_iter().map(|a| LightEntry::Area {
+            corners: a.corners.iter().map(|v| v.to_array()).collect(),
+            radiance: a.radiance.to_array(),
+        }));
         let materials = scene
             .materials
             .iter()
@@ -311,6 +413,8 @@ impl SceneFile {
                 vfov_deg: c.vfov_deg,
             }),
             materials,
+            mesh: None,
+            solver: None,
         }
     }
 
@@ -438,5 +542,58 @@ mod tests {
         assert!(e.contains("lights[0].direction"), "{e}");
         let e = refused("{\"builtin\": \"cornell\", \"materials\": {\"nope\": {}}}");
         assert!(e.contains("materials.nope"), "{e}");
+    }
+
+    /// Mesh and solver settings are written and read back as they were.
+    #[test]
+    fn mesh_and_solver_settings_round_trip() {
+        let scene = Scene::builtin("cornell", &LoadOptions::default()).unwrap();
+        let path = temp("settings.json");
+        let mut file = SceneFile::describe(&scene, None, &path);
+        file.mesh = Some(MeshEntry {
+            element_size: Some(25.0),
+            patch_size: Some(100.0),
+            max_elements: Some(5000),
+            discontinuity: true,
+        });
+        file.solver = Some(SolverEntry {
+            name: Some("gauss-seidel".into()),
+            formfactor: Some("hemicube".into()),
+            unshot: Some(1e-3),
+        });
+        file.save(&path).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("\"element_size\": 25.0"), "{text}");
+        assert_eq!(SceneFile::read(&path).unwrap(), file);
+    }
+
+    /// A bad setting is named by its path in the JSON; a misspelt one is refused with its
+    /// line.
+    #[test]
+    fn bad_settings_are_named_by_their_path() {
+        let path = temp("bad_settings.json");
+        let refused = |text: &str| {
+            std::fs::write(&path, text).unwrap();
+            SceneFile::read(&path).unwrap_err().to_string()
+        };
+        for (text, field) in [
+            ("\"mesh\": {\"element_size\": -2}", "mesh.element_size"),
+            ("\"mesh\": {\"patch_size\": 0}", "mesh.patch_size"),
+            ("\"mesh\": {\"max_elements\": 0}", "mesh.max_elements"),
+            ("\"solver\": {\"name\": \"newton\"}", "solver.name"),
+            (
+                "\"solver\": {\"formfactor\": \"magic\"}",
+                "solver.formfactor",
+            ),
+            ("\"solver\": {\"unshot\": -1}", "solver.unshot"),
+        ] {
+            let e = refused(&format!("{{\"builtin\": \"cornell\", {text}}}"));
+            assert!(e.contains(field) && e.contains("bad_settings.json"), "{e}");
+        }
+        let e = refused("{\"builtin\": \"cornell\",\n \"mesh\": {\"elemnt_size\": 2}}");
+        assert!(
+            e.contains("bad_settings.json:2") && e.contains("elemnt_size"),
+            "{e}"
+        );
     }
 }

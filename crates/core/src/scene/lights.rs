@@ -226,16 +226,7 @@ pub fn parse_area(text: &str) -> Result<(Vec<DVec3>, Rgb), LightError> {
     if v[6] <= 0.0 {
         return Err(err("the size must be positive"));
     }
-    let c = DVec3::new(v[0], v[1], v[2]);
-    let (t, b) = crate::geometry::sampling::basis(n);
-    let h = 0.5 * v[6];
-    // Counter-clockwise seen from the side `n` points to: t × b = n.
-    let corners = vec![
-        c - t * h - b * h,
-        c + t * h - b * h,
-        c + t * h + b * h,
-        c - t * h + b * h,
-    ];
+    let corners = super::square_corners(DVec3::new(v[0], v[1], v[2]), n, v[6]);
     Ok((corners, colour(flag, text, &v[7..10])?))
 }
 

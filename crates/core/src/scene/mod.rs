@@ -17,6 +17,7 @@
 //! Loading never panics and never half-loads: the OBJ and MTL text are checked line by line
 //! first (errors name `file:line`), then parsed by `tobj`, then the geometry is checked.
 
+mod area_lights;
 mod camera;
 pub mod cutouts;
 mod default_lights;
@@ -32,6 +33,7 @@ mod texture_tests;
 mod texturing;
 mod validate;
 
+pub use area_lights::{AreaLight, AreaLightError, square_corners};
 pub use camera::Camera;
 pub use default_lights::{DEFAULT_LIGHTS_HINT, DEFAULT_SKY, DEFAULT_SUN, default_sun_direction};
 pub use file::{SceneFile, is_scene_file};

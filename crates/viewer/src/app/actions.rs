@@ -117,6 +117,7 @@ impl ViewerApp {
                 });
             }
             Action::SetLights(lights) => self.solver.queue(Command::SetLights(lights)),
+            Action::SetAreaLights(lights) => self.solver.queue(Command::SetAreaLights(lights)),
             Action::Quit => ctx.send_viewport_cmd(egui::ViewportCommand::Close),
         }
     }

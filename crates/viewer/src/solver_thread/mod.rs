@@ -70,6 +70,11 @@ pub enum Command {
     ResetMaterials,
     /// The new list of skies, suns and point lights (incremental: no restart).
     SetLights(Vec<nusselt_core::scene::Light>),
+    /// The new list of area lights: the scene's faces change, so it is re-meshed at the
+    /// current element size and restarts from dark (other lights, material edits and the
+    /// camera kept). The old snapshot stays published until the new mesh is ready; a
+    /// refused list (an error event says why) changes nothing.
+    SetAreaLights(Vec<nusselt_core::scene::AreaLight>),
     /// Write the scene as it is now (model, lights, camera, materials) to a scene file.
     SaveScene {
         path: std::path::PathBuf,
@@ -274,6 +279,12 @@ impl SolverHandle {
         }
         if matches!(command, Command::SetLights(_))
             && matches!(self.outbox.back(), Some(Command::SetLights(_)))
+        {
+            self.outbox.pop_back();
+        }
+        // Each list of area lights costs a re-mesh: only the newest waiting one counts.
+        if matches!(command, Command::SetAreaLights(_))
+            && matches!(self.outbox.back(), Some(Command::SetAreaLights(_)))
         {
             self.outbox.pop_back();
         }

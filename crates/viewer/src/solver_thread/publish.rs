@@ -23,6 +23,11 @@ impl Worker {
             return;
         };
         let problem = solver.problem();
+        // Read again when the mesh or the materials (an area light's radiance) change.
+        let key = (geometry.id, self.reflectance_rev);
+        if self.area_lights.0 != key {
+            self.area_lights = (key, Arc::new(problem.scene.area_lights()));
+        }
         let plain = solver.element_radiance(false);
         let shown = solver.element_radiance(true);
         let correction: Vec<Rgb> = shown.iter().zip(&plain).map(|(s, b)| *s - *b).collect();
@@ -89,6 +94,7 @@ impl Worker {
             stats,
             materials: Arc::new(problem.scene.materials.clone()),
             lights: Arc::new(problem.scene.lights.clone()),
+            area_lights: self.area_lights.1.clone(),
             loaded_materials: self.loaded_materials.clone(),
             history: self.history.clone(),
             scene_name: problem.scene.name.clone(),

@@ -8,6 +8,7 @@ use std::sync::Arc;
 
 use nusselt_core::formfactor::FormFactorMethod;
 use nusselt_core::formfactor::hemicube::ItemBufferRaster;
+use nusselt_core::scene::{AreaLight, Material, MaterialId};
 use nusselt_core::solver::{Problem, RowCache, SolverKind};
 
 use super::Event;
@@ -65,6 +66,57 @@ impl Worker {
         }
     }
 
+    /// Replaces the area lights and re-meshes at the current element size, from dark;
+    /// other lights, material edits and the camera stay. A refused list (a degenerate
+    /// light, a power overflow, a mesh over the budget) leaves the scene and the solve as
+    /// they were.
+    pub(super) fn set_area_lights(&mut self, lights: Vec<AreaLight>) {
+        let checked = lights
+            .iter()
+            .enumerate()
+            .try_for_each(|(k, l)| l.check(k + 1));
+        if let Err(e) = checked {
+            self.send_event(Event::Error(e.to_string()));
+            return;
+        }
+        let Some(solver) = self.solver.take() else {
+            return;
+        };
+        let (mut problem, mut rows) = solver.into_parts();
+        let size = problem.mesh.element_size;
+        let before = (problem.scene.faces.clone(), problem.scene.materials.clone());
+        let result = problem
+            .scene
+            .set_area_lights(&lights)
+            .map_err(|e| e.to_string())
+            .and_then(|remap| {
+                problem.remesh(size).map_err(|e| e.to_string())?;
+                Ok(remap)
+            });
+        match result {
+            Ok(remap) => {
+                rows.clear();
+                self.loaded_materials = Arc::new(remap_loaded(
+                    &self.loaded_materials,
+                    &remap,
+                    &problem.scene.materials,
+                ));
+                if let Some(a) = self.adapting.as_mut() {
+                    // Levels were per patch of the old mesh.
+                    a.levels.clear();
+                }
+                self.build(problem, rows);
+                self.new_geometry();
+            }
+            Err(e) => {
+                // The mesh is untouched when re-meshing fails, so the rows still hold.
+                (problem.scene.faces, problem.scene.materials) = before;
+                self.send_event(Event::Error(format!("area lights: {e}")));
+                self.build(problem, rows);
+            }
+        }
+    }
+
     /// Switches the form-factor method (cached rows dropped) and restarts from dark. The
     /// GPU hemicube is started on first use; if it cannot be, nothing changes.
     pub(super) fn set_method(&mut self, method: FormFactorMethod) {
@@ -115,5 +167,92 @@ impl Worker {
         let (problem, rows) = solver.into_parts();
         self.kind = kind;
         self.build(problem, rows);
+    }
+}
+
+/// The materials as loaded after [`nusselt_core::scene::Scene::set_area_lights`]: the kept
+/// ones as they were loaded (by `remap`, old id to new), the new area lights' as they are
+/// now (`current`), so "reset edits" leaves the lights alone.
+fn remap_loaded(
+    loaded: &[Material],
+    remap: &[Option<MaterialId>],
+    current: &[Material],
+) -> Vec<Material> {
+    let mut out: Vec<Material> = loaded
+        .iter()
+        .zip(remap)
+        .filter(|(_, new)| new.is_some())
+        .map(|(m, _)| m.clone())
+        .collect();
+    out.extend(current.iter().skip(out.len()).cloned());
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+    use nusselt_core::scene::{AreaLight, Light, MaterialId, Rgb, SceneFile};
+
+    use super::super::Command;
+    use crate::teach::panel_tests::snapshot_after;
+
+    /// Adding an area light re-meshes at the same element size with the light's face,
+    /// and keeps the sky, a material edit and "reset edits" in step with the materials.
+    #[test]
+    fn an_area_light_remeshes_and_keeps_the_rest() {
+        let first = snapshot_after(Vec::new(), |_| true);
+        let sky = Light::Sky {
+            radiance: Rgb::splat(0.5),
+        };
+        let a = AreaLight::square(
+            DVec3::new(278.0, 500.0, 278.0),
+            DVec3::NEG_Y,
+            120.0,
+            Rgb::splat(5.0),
+        )
+        .unwrap();
+        let commands = vec![
+            Command::SetMaterial {
+                material: MaterialId(0),
+                reflectance: [0.1, 0.2, 0.3],
+                emission: [0.0; 3],
+            },
+            Command::SetLights(vec![sky]),
+            Command::SetAreaLights(vec![a.clone()]),
+        ];
+        let s = snapshot_after(commands, |s| s.area_lights.len() == 1);
+        assert_eq!(*s.area_lights, vec![a]);
+        assert_eq!(*s.lights, vec![sky]);
+        assert_eq!(s.materials[0].reflectance, Rgb::new(0.1, 0.2, 0.3));
+        assert_eq!(s.loaded_materials.len(), s.materials.len());
+        assert_eq!(s.loaded_materials[0], first.loaded_materials[0]);
+        assert!(s.geometry.elements > first.geometry.elements);
+        assert_eq!(s.geometry.element_size, first.geometry.element_size);
+    }
+
+    /// "Save scene" writes the mesh's element size and the solver settings in use.
+    #[test]
+    fn saved_scenes_carry_mesh_and_solver_settings() {
+        let dir = std::env::temp_dir().join(format!("nusselt-save-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("saved.scene.json");
+        let _ = std::fs::remove_file(&path);
+        let commands = vec![
+            Command::Remesh(50.0),
+            Command::SaveScene {
+                path: path.clone(),
+                camera: None,
+            },
+        ];
+        let wait = path.clone();
+        snapshot_after(commands, move |_| wait.exists());
+        let file = SceneFile::read(&path).unwrap();
+        let mesh = file.mesh.expect("mesh settings");
+        assert_eq!(mesh.element_size, Some(50.0));
+        assert_eq!(mesh.patch_size, Some(120.0));
+        let solver = file.solver.expect("solver settings");
+        assert_eq!(solver.name.as_deref(), Some("shooting"));
+        assert_eq!(solver.formfactor.as_deref(), Some("contour"));
+        assert!(solver.unshot.is_some());
     }
 }

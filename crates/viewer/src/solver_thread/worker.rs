@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TryRecvError, TrySendError};
 use std::time::{Duration, Instant};
 
-use nusselt_core::scene::{LoadOptions, Material, MaterialId, Rgb, Scene};
+use nusselt_core::scene::{AreaLight, LoadOptions, Material, MaterialId, Rgb, Scene};
 use nusselt_core::solver::{Problem, Solver, SolverConfig, SolverKind};
 
 use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, vertex_reflectance};
@@ -93,6 +93,8 @@ pub(super) struct Worker {
     pub(super) ray_input_at: Option<Instant>,
     /// Adaptive refinement in progress (`adapt.rs`).
     pub(super) adapting: Option<super::adapt::Adapting>,
+    /// The scene's area lights, read for this (mesh id, reflectance revision).
+    pub(super) area_lights: ((u64, u64), Arc<Vec<AreaLight>>),
 }
 
 enum Flow {
@@ -160,6 +162,7 @@ impl Worker {
             ray_input_key: None,
             ray_input_at: None,
             adapting: None,
+            area_lights: ((0, 0), Arc::new(Vec::new())),
         }
     }
 
@@ -416,8 +419,7 @@ impl Worker {
             } => self.set_material(material, Rgb::from(reflectance), Rgb::from(emission)),
             Command::SaveScene { path, camera } => {
                 if let Some(s) = self.solver.as_ref() {
-                    let scene = &s.problem().scene;
-                    let file = nusselt_core::scene::SceneFile::describe(scene, camera, &path);
+                    let file = self.scene_file(s.as_ref(), camera, &path);
                     match file.save(&path) {
                         Ok(()) => {
                             self.send_event(Event::Notice(format!("saved {}", path.display())))
@@ -426,6 +428,7 @@ impl Worker {
                     }
                 }
             }
+            Command::SetAreaLights(lights) => self.set_area_lights(lights),
             Command::SetLights(lights) => {
                 if let Some(s) = self.solver.as_mut() {
                     s.set_lights(lights);
@@ -474,6 +477,31 @@ impl Worker {
         }
         self.dirty = true;
         Flow::Continue
+    }
+
+    /// What "Save scene" writes: the scene as it is now, with the mesh's element size and
+    /// the solver settings in use.
+    fn scene_file(
+        &self,
+        solver: &dyn Solver,
+        camera: Option<nusselt_core::scene::Camera>,
+        path: &std::path::Path,
+    ) -> nusselt_core::scene::SceneFile {
+        use nusselt_core::scene::file::{MeshEntry, SolverEntry};
+        let problem = solver.problem();
+        let mut file = nusselt_core::scene::SceneFile::describe(&problem.scene, camera, path);
+        file.mesh = Some(MeshEntry {
+            element_size: Some(problem.mesh.element_size),
+            patch_size: problem.config.patch_size,
+            max_elements: problem.config.max_elements,
+            discontinuity: problem.config.discontinuity,
+        });
+        file.solver = Some(SolverEntry {
+            name: Some(self.kind.name().into()),
+            formfactor: Some(problem.config.method.name().into()),
+            unshot: Some(self.stop_unshot),
+        });
+        file
     }
 
     fn load(&mut self, mut scene: Scene) {
