@@ -54,12 +54,19 @@ impl AutoExposure {
     }
 }
 
-/// [`auto_exposure_stops`] of the displayed radiance per vertex.
+/// [`auto_exposure_stops`] of the displayed radiance per vertex; `None` (not yet) while
+/// fewer than 5 % of the vertices show any light: a snapshot before the first light was
+/// shot or gathered shows the emitters alone, and exposing for them would darken the scene
+/// they are about to light (a gathering solver's first snapshot, before its first sweep).
 pub fn auto_scene_stops(displayed: &[[f32; 3]]) -> Option<f32> {
     let lum: Vec<f64> = displayed
         .iter()
         .map(|c| f64::from(0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]))
         .collect();
+    let lit = lum.iter().filter(|l| **l > 0.0).count();
+    if lit * 20 < lum.len() {
+        return None;
+    }
     auto_exposure_stops(lum).map(|s| s as f32)
 }
 
@@ -67,6 +74,23 @@ pub fn auto_scene_stops(displayed: &[[f32; 3]]) -> Option<f32> {
 mod tests {
     use super::*;
     use nusselt_core::render::image::TARGET_LUMINANCE as TARGET;
+
+    /// Only the emitters lit (a gathering solver before its first sweep): wait, whatever
+    /// their brightness; once the scene carries light, decide.
+    #[test]
+    fn the_emitters_alone_do_not_decide_the_exposure() {
+        let mut first = vec![[0.0f32; 3]; 100];
+        first[0] = [17.0, 12.0, 4.0];
+        let mut e = 0.0;
+        let mut auto = AutoExposure::new(0.0);
+        assert_eq!(auto.on_snapshot(&first, &mut e), None);
+        assert!(auto.armed, "still waiting for light on the scene");
+        assert_eq!(e, 0.0);
+        let lit = vec![[0.3, 0.3, 0.3]; 100];
+        assert_eq!(auto.on_snapshot(&lit, &mut e), None);
+        assert!(!auto.armed);
+        assert_eq!(e, 0.0);
+    }
 
     #[test]
     fn a_visible_scene_keeps_exposure_zero() {

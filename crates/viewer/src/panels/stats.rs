@@ -6,18 +6,22 @@ use egui_plot::{Legend, Line, Plot, PlotPoints};
 
 use super::super::snapshot::Snapshot;
 
-/// "mesh 20 MB + stored 4 MB of 12.3 GB budget": what draws on `--max-memory`.
-fn memory_line(st: &super::super::snapshot::Stats) -> String {
+/// "mesh 20 + stored 4 MB" and "12.3 GB": what draws on `--max-memory`, and the budget, on
+/// two short rows (one long row widened the side panel and narrowed the viewport).
+fn memory_lines(st: &super::super::snapshot::Stats) -> (String, String) {
     let mb = |b: usize| b as f64 / 1e6;
     let budget = if st.memory_budget >= 1_000_000_000 {
         format!("{:.1} GB", st.memory_budget as f64 / 1e9)
     } else {
         format!("{:.0} MB", mb(st.memory_budget))
     };
-    format!(
-        "mesh {:.0} MB + stored {:.0} MB of {budget}",
-        mb(st.resident_bytes),
-        mb(st.matrix_bytes)
+    (
+        format!(
+            "mesh {:.0} + stored {:.0} MB",
+            mb(st.resident_bytes),
+            mb(st.matrix_bytes)
+        ),
+        budget,
     )
 }
 
@@ -72,7 +76,9 @@ pub(super) fn stats_section(ui: &mut egui::Ui, s: &Snapshot, failed: bool, reaso
             );
         }
         if st.memory_budget > 0 {
-            row(ui, "memory", memory_line(st));
+            let (used, budget) = memory_lines(st);
+            row(ui, "memory", used);
+            row(ui, "budget", budget);
         }
         if let Some(t) = &s.textures {
             row(
