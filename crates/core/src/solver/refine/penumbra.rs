@@ -174,19 +174,10 @@ mod tests {
     use crate::scene::{LoadOptions, Scene};
     use crate::solver::{Problem, SolverConfig, SolverKind, solve_to};
 
-    /// A 4 × 4 floor lit by a 0.2-wide light 2 above its middle, half shaded by a plate 1
-    /// above it whose edge (x = 1.625) casts the shadow edge at x = 1.25 ± 0.1: through the
-    /// middle of the elements 1–1.5, whose centroids all sit on the edge.
-    #[test]
-    fn a_shadow_edge_between_centroids_marks_the_patches_it_crosses() {
-        let obj = "mtllib s.mtl\n\
-            v 0 0 0\nv 4 0 0\nv 4 4 0\nv 0 4 0\nusemtl floor\nf 1 2 3 4\n\
-            v 1.9 1.9 2\nv 1.9 2.1 2\nv 2.1 2.1 2\nv 2.1 1.9 2\nusemtl light\nf 5 6 7 8\n\
-            v -1 -1 1\nv -1 5 1\nv 1.625 5 1\nv 1.625 -1 1\nusemtl plate\nf 9 10 11 12\n";
-        let mtl = "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl light\nKd 0 0 0\nKe 50 50 50\n\
-            newmtl plate\nKd 0 0 0\n";
-        let scene = Scene::from_obj_str("s.obj", obj, &[("s.mtl", mtl)], &LoadOptions::default())
-            .expect("scene");
+    /// Solves `scene` (floor at z = 0, patches of 1, elements of ½) and checks
+    /// [`penumbra_bases`]: every floor patch that spans x = `edge` is marked, every one
+    /// wholly left of `left` or right of `right` is not, and there are at least four of each.
+    fn check_marks(scene: Scene, edge: f64, left: f64, right: f64) {
         let config = SolverConfig {
             element_size: Some(0.5),
             patch_size: Some(1.0),
@@ -212,13 +203,13 @@ mod tests {
                     (l.min(v.x), h.max(v.x))
                 });
             let b = mesh.base_patch[p] as usize;
-            if lo < 1.25 && hi > 1.25 {
+            if lo < edge && hi > edge {
                 assert!(
                     crossed[b],
                     "floor patch {p} ({lo}..{hi}) holds the shadow edge"
                 );
                 on_edge += 1;
-            } else if lo >= 2.0 || hi <= 1.0 {
+            } else if lo >= right || hi <= left {
                 assert!(
                     !crossed[b],
                     "floor patch {p} ({lo}..{hi}) is all lit or all shaded"
@@ -230,6 +221,22 @@ mod tests {
             on_edge >= 4 && off_edge >= 4,
             "{on_edge} on, {off_edge} off"
         );
+    }
+
+    /// A 4 × 4 floor lit by a 0.2-wide light 2 above its middle, half shaded by a plate 1
+    /// above it whose edge (x = 1.625) casts the shadow edge at x = 1.25 ± 0.1: through the
+    /// middle of the elements 1–1.5, whose centroids all sit on the edge.
+    #[test]
+    fn a_shadow_edge_between_centroids_marks_the_patches_it_crosses() {
+        let obj = "mtllib s.mtl\n\
+            v 0 0 0\nv 4 0 0\nv 4 4 0\nv 0 4 0\nusemtl floor\nf 1 2 3 4\n\
+            v 1.9 1.9 2\nv 1.9 2.1 2\nv 2.1 2.1 2\nv 2.1 1.9 2\nusemtl light\nf 5 6 7 8\n\
+            v -1 -1 1\nv -1 5 1\nv 1.625 5 1\nv 1.625 -1 1\nusemtl plate\nf 9 10 11 12\n";
+        let mtl = "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl light\nKd 0 0 0\nKe 50 50 50\n\
+            newmtl plate\nKd 0 0 0\n";
+        let scene = Scene::from_obj_str("s.obj", obj, &[("s.mtl", mtl)], &LoadOptions::default())
+            .expect("scene");
+        check_marks(scene, 1.25, 1.0, 2.0);
     }
 
     /// The same floor and plate under a sun (no emitting face) from direction (0.3, 0, 1):
@@ -246,49 +253,10 @@ mod tests {
             Scene::from_obj_str("s.obj", obj, &[("s.mtl", mtl)], &LoadOptions::default())
                 .expect("scene");
         scene.lights.push(crate::scene::Light::Sun {
-            direction: DVec3::new(0.3, 0.0, 1.0).normalize(),
+            direction: DVec3::new(0.3, 0.0, 1.0).normalize_or_zero(),
             irradiance: Rgb::splat(3.0),
             angular_radius: 0.0,
         });
-        let config = SolverConfig {
-            element_size: Some(0.5),
-            patch_size: Some(1.0),
-            ..Default::default()
-        };
-        let mut solver = SolverKind::Shooting
-            .build(Problem::new(scene, config).expect("problem"))
-            .expect("solver");
-        solve_to(solver.as_mut(), 1e-3);
-        let radiance = solver.element_radiance(false);
-        let problem = solver.problem();
-        let crossed = penumbra_bases(problem, &radiance, 0.1);
-        let mesh = &problem.mesh;
-        let (mut on_edge, mut off_edge) = (0, 0);
-        for (p, patch) in mesh.patches.iter().enumerate() {
-            if patch.normal.z < 0.99 || patch.centroid.z > 1e-9 {
-                continue;
-            }
-            let (lo, hi) = patch
-                .polygon
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-                    (l.min(v.x), h.max(v.x))
-                });
-            let b = mesh.base_patch[p] as usize;
-            if lo < 1.325 && hi > 1.325 {
-                assert!(crossed[b], "floor patch {p} ({lo}..{hi}) holds the edge");
-                on_edge += 1;
-            } else if lo >= 1.625 || hi <= 1.0 {
-                assert!(
-                    !crossed[b],
-                    "floor patch {p} ({lo}..{hi}) is all lit or shaded"
-                );
-                off_edge += 1;
-            }
-        }
-        assert!(
-            on_edge >= 4 && off_edge >= 4,
-            "{on_edge} on, {off_edge} off"
-        );
+        check_marks(scene, 1.325, 1.0, 1.625);
     }
 }
