@@ -24,16 +24,14 @@ use crate::scene::lights::{has_punctual, punctual_incident, sky_radiance};
 use crate::scene::{Light, Rgb, Scene, Surface};
 
 /// Windows for the light of skies, suns and points: faces of glass materials are thin
-/// panes whose visibility is their transmittance. A ray that an opaque face stops sees
-/// nothing; one that crosses only glass carries the thin slab's transmittance
-/// `(1 − R)² / (1 − R²)`, `R = ((n − 1)/(n + 1))²` at normal incidence (0.923 for n = 1.5),
-/// whatever the number of panes and the angle (both err high: two panes or a grazing ray
-/// let through less). Exact per ray, where the solve's blockers
-/// ([`crate::scene::Scene::solve_cutouts`]) let a ray through a pane with probability `t`.
+/// panes whose visibility is their transmittance. A ray the solve's blockers stop is tested
+/// again against the opaque faces alone; if only glass stopped it, it carries the thin
+/// slab's transmittance `(1 − R)² / (1 − R²)`, `R = ((n − 1)/(n + 1))²` at normal incidence
+/// (0.923 for n = 1.5), whatever the number of panes and the angle (both err high: two
+/// panes or a grazing ray let through less).
 #[derive(Default)]
 pub struct GlassVisibility {
-    /// The opaque faces and the glass faces, each alone.
-    opaque: Option<(Bvh, Bvh)>,
+    opaque: Option<Bvh>,
     transmittance: f64,
 }
 
@@ -50,8 +48,7 @@ pub fn slab_transmittance(ior: f64) -> f64 {
 }
 
 impl GlassVisibility {
-    /// The opaque and the glass faces of `scene` as `mesh` groups them; nothing if there is
-    /// no glass.
+    /// The opaque faces of `scene` as `mesh` groups them; nothing if there is no glass.
     pub fn new(scene: &Scene, mesh: &Mesh) -> Self {
         let Some(ior) = scene.materials.iter().find_map(|m| match m.surface {
             Surface::Glass { ior } => Some(ior),
@@ -59,28 +56,27 @@ impl GlassVisibility {
         }) else {
             return Self::default();
         };
-        let is_glass = |f: &crate::scene::Face| {
-            matches!(
+        let opaque = mesh.blocker_bvh_where(scene, |f| {
+            !matches!(
                 scene.materials[f.material.0 as usize].surface,
                 Surface::Glass { .. }
             )
-        };
-        let opaque = mesh.blocker_bvh_where(scene, |f| !is_glass(f));
-        let panes = Bvh::build(&mesh.blocker_triangles_where(scene, is_glass));
+        });
         Self {
-            opaque: Some((opaque, panes)),
+            opaque: Some(opaque),
             transmittance: slab_transmittance(ior),
         }
     }
 
-    /// The fraction of light along `ray` up to `t_max` that the faces let through:
-    /// `blockers` (the solve's) without glass, else the opaque faces and the panes.
+    /// The fraction of light along `ray` up to `t_max` that `blockers` (all faces) and the
+    /// windows let through.
     pub fn visibility(&self, blockers: &Bvh, ray: &Ray, t_max: f64, ignore: [u32; 2]) -> f64 {
+        if !blockers.any_hit_except(ray, 0.0, t_max, ignore) {
+            return 1.0;
+        }
         match &self.opaque {
-            None => f64::from(u8::from(!blockers.any_hit_except(ray, 0.0, t_max, ignore))),
-            Some((opaque, _)) if opaque.any_hit_except(ray, 0.0, t_max, ignore) => 0.0,
-            Some((_, panes)) if panes.any_hit_except(ray, 0.0, t_max, ignore) => self.transmittance,
-            Some(_) => 1.0,
+            Some(opaque) if !opaque.any_hit_except(ray, 0.0, t_max, ignore) => self.transmittance,
+            _ => 0.0,
         }
     }
 }

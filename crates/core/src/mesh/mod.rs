@@ -440,15 +440,15 @@ impl Mesh {
         (out, faces)
     }
 
-    /// The solve's hierarchy over [`Mesh::blocker_triangles`] of the faces `keep` accepts,
-    /// with the scene's cut-outs as holes and glass as thin panes ([`Scene::solve_cutouts`]).
+    /// The hierarchy over [`Mesh::blocker_triangles`] of the faces `keep` accepts, with the
+    /// scene's cut-outs as holes ([`Scene::cutouts`]).
     pub fn blocker_bvh_where(
         &self,
         scene: &Scene,
         keep: impl Fn(&crate::scene::Face) -> bool,
     ) -> Bvh {
         let (mut input, faces) = self.blocker_input(scene, keep);
-        let cuts = scene.solve_cutouts();
+        let cuts = scene.cutouts();
         cuts.mark(scene, &mut input, |i| faces[i]);
         cuts.bvh(&input)
     }

@@ -188,24 +188,14 @@ impl Problem {
     /// as a receiver (rays through its holes reach what is behind it) but reflects and
     /// sends only from its opaque part: the power it sends, `ρ H A c`, is what an element of
     /// area `c A` would send, and the display divides by this same mean, so an opaque pixel
-    /// shows `Kd · texel · H`. A glass pane, which the solve's rays pass with probability
-    /// `t` ([`Scene::solve_cutouts`]), is opaque for `1 − t` of its area in the same way.
-    ///
-    /// [`Scene::solve_cutouts`]: crate::scene::Scene::solve_cutouts
+    /// shows `Kd · texel · H`.
     fn texture_elements(&mut self) {
         use rayon::prelude::*;
-        let pane = self.scene.materials.iter().find_map(|m| match m.surface {
-            crate::scene::Surface::Glass { ior } => {
-                Some(1.0 - crate::formfactor::lights::slab_transmittance(ior))
-            }
-            _ => None,
-        });
-        let textured = pane.is_some()
-            || self
-                .scene
-                .materials
-                .iter()
-                .any(|m| m.diffuse_map.is_some() || m.alpha_map.is_some());
+        let textured = self
+            .scene
+            .materials
+            .iter()
+            .any(|m| m.diffuse_map.is_some() || m.alpha_map.is_some());
         self.element_coverage = Vec::new();
         if !textured {
             self.element_texture = Vec::new();
@@ -219,18 +209,11 @@ impl Problem {
             .par_iter()
             .map(|e| {
                 // A degenerate element's mean can be undefined: it keeps its Kd.
-                let (rgb, c) = scene
+                scene
                     .texture_mean(e.face as usize, e.corners())
                     .map(|t| (t.rgb * t.coverage, t.coverage))
                     .filter(|(t, c)| t.is_finite() && c.is_finite())
-                    .unwrap_or((Rgb::ONE, 1.0));
-                let face = &scene.faces[e.face as usize];
-                match (pane, &scene.materials[face.material.0 as usize].surface) {
-                    (Some(opaque), crate::scene::Surface::Glass { .. }) => {
-                        (rgb * opaque, c * opaque)
-                    }
-                    _ => (rgb, c),
-                }
+                    .unwrap_or((Rgb::ONE, 1.0))
             })
             .collect();
         self.element_texture = means.iter().map(|m| m.0).collect();
