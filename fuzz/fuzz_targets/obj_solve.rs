@@ -5,12 +5,11 @@
 //! `m.mtl` (any `mtllib` names another file, which is then missing: an error, also fine).
 #![no_main]
 
-use std::sync::atomic::AtomicBool;
+#[path = "common.rs"]
+mod common;
 
 use libfuzzer_sys::fuzz_target;
-use nusselt::render::{self, RenderSettings, SolutionView};
 use nusselt::scene::{LoadOptions, Scene};
-use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 
 const DEFAULT_MTL: &str = "newmtl light\nKd 0.5 0.5 0.5\nKe 4 4 4\nnewmtl grey\nKd 0.7 0.7 0.7\n";
 
@@ -26,48 +25,8 @@ fuzz_target!(|data: &[u8]| {
             two_sided,
             ..Default::default()
         };
-        let Ok(scene) = Scene::from_obj_str("fuzz.obj", &obj, &[("m.mtl", &mtl)], &opts) else {
-            return;
-        };
-        // Coarse sizes relative to the scene, as a user's `--element-size` would be.
-        let d = scene.bounds().diagonal();
-        let config = SolverConfig {
-            element_size: Some(d / 6.0),
-            patch_size: Some(d / 3.0),
-            ..Default::default()
-        };
-        let Ok(mut s) = ProgressiveSolver::new(scene, config) else {
-            return;
-        };
-        s.run(
-            &StopCriteria {
-                unshot: 0.0,
-                max_shots: Some(3),
-                max_seconds: None,
-            },
-            &AtomicBool::new(false),
-            &mut |_| {},
-        );
-        let radiance = s.element_radiance(true);
-        assert!(radiance.iter().all(|b| b.is_finite() && b.min_element() >= 0.0));
-        let vertex = s.mesh().vertex_values(&radiance);
-        let bvh = render::display_bvh(s.scene(), s.mesh());
-        let view = SolutionView {
-            scene: s.scene(),
-            mesh: s.mesh(),
-            vertex_radiance: &vertex,
-            bvh: &bvh,
-        };
-        let img = render::render_solution(
-            &view,
-            &RenderSettings {
-                width: 8,
-                height: 8,
-                spp: 1,
-                camera: s.scene().default_camera(),
-                seed: 1,
-            },
-        );
-        assert!(img.pixels.iter().all(|p| p.is_finite() && p.min_element() >= 0.0));
+        if let Ok(scene) = Scene::from_obj_str("fuzz.obj", &obj, &[("m.mtl", &mtl)], &opts) {
+            common::solve_and_render(scene);
+        }
     }
 });

@@ -1,0 +1,63 @@
+//! What every target does with a scene that loaded: mesh it coarsely (relative to its size,
+//! as a user's `--element-size` would be), shoot 3 times and render 8 × 8 pixels. Errors
+//! returned by the library are fine; a panic, a NaN or a negative radiance is a crash.
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+
+use nusselt::render::{self, RenderSettings, SolutionView};
+use nusselt::scene::Scene;
+use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+
+/// A folder of this process's own for the files a target writes (loaders read files).
+#[allow(dead_code)] // obj_solve loads from memory
+pub fn scratch() -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("nusselt-fuzz-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    dir
+}
+
+pub fn solve_and_render(scene: Scene) {
+    let d = scene.bounds().diagonal();
+    let config = SolverConfig {
+        element_size: Some(d / 6.0),
+        patch_size: Some(d / 3.0),
+        ..Default::default()
+    };
+    let Ok(mut s) = ProgressiveSolver::new(scene, config) else {
+        return;
+    };
+    s.run(
+        &StopCriteria {
+            unshot: 0.0,
+            max_shots: Some(3),
+            max_seconds: None,
+            tolerance: None,
+        },
+        &AtomicBool::new(false),
+        &mut |_| {},
+    );
+    let radiance = s.element_radiance(true);
+    assert!(radiance.iter().all(|b| b.is_finite() && b.min_element() >= 0.0));
+    let vertex = s.mesh().vertex_values(&radiance);
+    let bvh = render::display_bvh(s.scene(), s.mesh());
+    let view = SolutionView {
+        scene: s.scene(),
+        mesh: s.mesh(),
+        vertex_radiance: &vertex,
+        bvh: &bvh,
+        texture: s.problem().element_texture(),
+    };
+    let img = render::render_solution(
+        &view,
+        &RenderSettings {
+            width: 8,
+            height: 8,
+            spp: 1,
+            camera: render::view::default_camera(s.scene()),
+            seed: 1,
+            edge_spp: 0,
+        },
+    );
+    assert!(img.pixels.iter().all(|p| p.is_finite() && p.min_element() >= 0.0));
+}
