@@ -9,6 +9,15 @@ use nusselt::render::{self, RenderSettings, SolutionView};
 use nusselt::scene::Scene;
 use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 
+/// Replaces libFuzzer's panic hook (which aborts at once) with a silent one, so that a
+/// panic the library catches and reports as an error is not counted as a crash; a panic
+/// that reaches the target still aborts (libfuzzer-sys catches it at the target's edge).
+#[allow(dead_code)] // only the targets whose loaders catch panics
+pub fn tolerate_caught_panics() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| std::panic::set_hook(Box::new(|_| {})));
+}
+
 /// A folder of this process's own for the files a target writes (loaders read files).
 #[allow(dead_code)] // obj_solve loads from memory
 pub fn scratch() -> PathBuf {

@@ -837,3 +837,18 @@ fn a_saved_scene_of_a_gltf_model_keeps_its_lights_once() {
         (c.outer - 20f64.to_radians()).abs() < 1e-12 && close(c.direction, DVec3::NEG_Y, 1e-12)
     );
 }
+
+/// Found by fuzzing (`fuzz/`, target `gltf_solve`, 2026-12-04): a GLB whose chunk lengths
+/// overflow the gltf crate's header arithmetic (it panics on `attempt to subtract with
+/// overflow` where overflow checks are on). The importer catches it: an error naming the
+/// file, never a panic.
+#[test]
+fn a_glb_whose_header_overflows_is_an_error() {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/fuzz/glb_header_overflow.glb");
+    let bytes = std::fs::read(&path).expect("fuzz input");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let err = from_slice(&bytes, "overflow.glb", dir.path(), &LoadOptions::default())
+        .expect_err("a malformed GLB");
+    assert!(err.to_string().contains("overflow.glb"), "{err}");
+}
