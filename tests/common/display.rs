@@ -46,43 +46,49 @@ pub fn display() -> Result<Display, String> {
         });
     }
     let xvfb = which("Xvfb").ok_or("DISPLAY is unset and Xvfb is not installed")?;
-    for attempt in 0..20u32 {
-        let n = 50 + (std::process::id() + attempt * 7) % 400;
-        if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
-            || Path::new(&format!("/tmp/.X{n}-lock")).exists()
-        {
-            continue;
+    // `-displayfd 1`: Xvfb picks a free display number itself (taking its lock file
+    // atomically) and writes it to stdout once it accepts connections. Choosing the number
+    // here instead raced with the other test processes: two could pick the same one, the
+    // loser's Xvfb exited and it went on using the winner's server, which vanished when
+    // the winner's test ended. `-noreset`: no server reset when the last client leaves.
+    let mut child = Command::new(&xvfb)
+        .args([
+            "-displayfd",
+            "1",
+            "-screen",
+            "0",
+            "1280x800x24",
+            "-nolisten",
+            "tcp",
+            "-noreset",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .map_err(|e| format!("cannot start Xvfb: {e}"))?;
+    let stdout = child.stdout.take().ok_or("Xvfb has no stdout")?;
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        use std::io::BufRead;
+        let mut line = String::new();
+        let _ = std::io::BufReader::new(stdout).read_line(&mut line);
+        let _ = tx.send(line);
+    });
+    let number = rx
+        .recv_timeout(Duration::from_secs(30))
+        .ok()
+        .and_then(|line| line.trim().parse::<u32>().ok());
+    match number {
+        Some(n) => Ok(Display {
+            name: format!(":{n}"),
+            server: Some(child),
+        }),
+        None => {
+            let _ = child.kill();
+            let _ = child.wait();
+            Err("Xvfb did not start (no display number on -displayfd within 30 s)".into())
         }
-        let mut child = Command::new(&xvfb)
-            .args([
-                format!(":{n}").as_str(),
-                "-screen",
-                "0",
-                "1280x800x24",
-                "-nolisten",
-                "tcp",
-            ])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .map_err(|e| format!("cannot start Xvfb: {e}"))?;
-        let deadline = Instant::now() + Duration::from_secs(15);
-        while Instant::now() < deadline {
-            if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
-                return Ok(Display {
-                    name: format!(":{n}"),
-                    server: Some(child),
-                });
-            }
-            if let Ok(Some(_)) = child.try_wait() {
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        let _ = child.kill();
-        let _ = child.wait();
     }
-    Err("Xvfb did not start".into())
 }
 
 pub struct Picture {
