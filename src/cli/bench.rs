@@ -157,13 +157,15 @@ struct Case {
     truth: Truth,
 }
 
-const SOLVERS: [(&str, SolverKind, bool); 6] = [
+const SOLVERS: [(&str, SolverKind, bool); 8] = [
     ("shooting", SolverKind::Shooting, true),
     ("shooting-plain", SolverKind::Shooting, false),
     ("jacobi", SolverKind::Jacobi, false),
     ("gauss-seidel", SolverKind::GaussSeidel, false),
     ("sor", SolverKind::Sor(None), false),
     ("cg", SolverKind::Cg, false),
+    ("hierarchical", SolverKind::Hierarchical, false),
+    ("wavelet", SolverKind::Wavelet, false),
 ];
 
 pub fn run(args: &BenchArgs) -> Result<()> {

@@ -21,21 +21,27 @@
 //!
 //! Error: that of the links kept (bounded by the tolerance, [`SolverConfig::link_tolerance`]
 //! times the scene's mean emitted radiosity, per link), of the 4-ray visibility, and of
-//! constant elements. The residual reported is the change of the last iteration,
+//! constant elements. The estimates err low more often than high, and summed over
+//! hundreds of links they lost light: the closed furnace box was 1–5 % off `E/(1 − ρ)` at
+//! 864–2,400 elements, the gallery's statue 18 % too dark. Each element's gathered light
+//! is therefore rescaled so that the kernels it reads sum to its covered hemisphere
+//! ([`conserve`]): exact in a closed scene, weighed against the rays' noise in an open one.
+//! The residual reported is the change of the last iteration,
 //! `Σ|B_new − B_old| A / Σ|E| A` (the residual of the hierarchical system at the old
 //! solution), not the residual of the full-matrix system the other solvers report.
 //! Receivers below 1/16,384 of the scene's area ([`REFERENCE_RECEIVERS`]) get a threshold
 //! that grows as they shrink (a gradual minimum area, HSA's `A_ε`), so the links stop
 //! growing with the element count: their error weighs by their area in the power and image
 //! error.
-//! Measured (docs/BENCHMARKS.md): the Cornell box at the default tolerance 2.72 % from the
-//! path-traced reference in 3.7 s (shooting 1.78 % in 5.8 s); at a million elements
-//! converged in 19 s, 854 MB peak for the whole render; the 100 k-triangle gallery in 22 s,
-//! 10.2 % (shooting 29 s, 7.3 %: the statue's facets gather through point-source links
-//! that err low within the tolerance).
+//! Measured (`render --pass vertex --reference`, release, this 2-core machine): the Cornell
+//! box at the default tolerance 2.05 % from the path-traced reference (2.66 % before the
+//! rescaling; shooting 1.78 %), wavelet 1.45 % (1.90 %); the 100 k-triangle gallery 7.2 %
+//! (8.3 %; shooting 5.5 %), its statue's mean 0.997 of the reference's (0.824), wavelet
+//! 5.5 % and 1.001 (6.4 %, 0.894). docs/BENCHMARKS.md has the times.
 //!
 //! [`SolverConfig::link_tolerance`]: super::SolverConfig::link_tolerance
 
+pub mod conserve;
 pub mod directional;
 pub mod flatlet;
 pub mod link;
@@ -82,6 +88,10 @@ pub struct HierarchicalSolver {
     radiosity: Vec<Rgb>,
     /// Last iteration's change per element (the residual).
     change: Vec<Rgb>,
+    /// Per element, the covered fraction of its hemisphere ([`conserve`]; measured once).
+    coverage: Option<conserve::Coverage>,
+    /// Per element, the factor on its gathered light ([`conserve::gain`]; with the links).
+    gain: Vec<f64>,
     /// Per patch (an element's are its patch's).
     emission: Vec<Rgb>,
     reflectance: Vec<Rgb>,
@@ -116,6 +126,8 @@ impl HierarchicalSolver {
             node_b: Vec::new(),
             radiosity: Vec::new(),
             change: Vec::new(),
+            coverage: None,
+            gain: Vec::new(),
             emission: Vec::new(),
             reflectance: Vec::new(),
             emitted: 0.0,
@@ -238,11 +250,11 @@ impl HierarchicalSolver {
         self.blocks = blocks;
     }
 
-    /// Gather, push to the leaves, pull up; sets the residual.
-    fn gather_push_pull(&mut self) {
+    /// The irradiance per node that node radiosities `b` send over the links and blocks,
+    /// pushed down (each node's includes its ancestors'; clusters' read at the normal).
+    fn pushed(&self, b: &[Rgb]) -> Vec<Rgb> {
         let links = &self.links;
         let start = &self.link_start;
-        let b = &self.node_b;
         let nodes = &self.tree.nodes;
         // Planar receivers gather a scalar; clusters a directional irradiance.
         let mut down: Vec<Rgb> = (0..nodes.len())
@@ -323,11 +335,18 @@ impl HierarchicalSolver {
                 down[n] += directional::irradiance(&parent_sh, nodes[n].normal);
             }
         }
+        down
+    }
+
+    /// Gather, push to the leaves, pull up; sets the residual.
+    fn gather_push_pull(&mut self) {
+        let down = self.pushed(&self.node_b);
         let mut residual = 0.0;
         for (e, el) in self.problem.mesh.elements.iter().enumerate() {
             let leaf = self.tree.leaf[e] as usize;
             let p = el.patch.0 as usize;
-            let new = self.problem.element_source(e) + self.reflectance[p] * down[leaf];
+            let gathered = down[leaf] * self.gain.get(e).copied().unwrap_or(1.0);
+            let new = self.problem.element_source(e) + self.reflectance[p] * gathered;
             debug_assert!(new.is_finite());
             self.change[e] = new - self.radiosity[e];
             residual += channel_sum(self.change[e]) * el.area;
@@ -355,6 +374,25 @@ impl HierarchicalSolver {
                     (self.node_b[a] + self.node_b[c]) * 0.5
                 }
             };
+        }
+    }
+
+    /// Scales each element's gathered light so the kernels it reads sum to its covered
+    /// fraction ([`conserve`]); after the links change.
+    fn update_gain(&mut self) {
+        if self.coverage.is_none() {
+            let p = &self.problem;
+            self.coverage = Some(conserve::Coverage::measure(&p.mesh, &p.bvh, p.epsilon));
+        }
+        let sums = self.pushed(&vec![Rgb::ONE; self.tree.nodes.len()]);
+        let sums: Vec<f64> = (self.tree.leaf.iter())
+            .map(|&l| {
+                let s = sums[l as usize];
+                (s.x + s.y + s.z) / 3.0
+            })
+            .collect();
+        if let Some(coverage) = self.coverage.as_ref() {
+            self.gain = coverage.gains(&sums);
         }
     }
 

@@ -27,6 +27,7 @@ impl Solver for HierarchicalSolver {
             if !self.refine(cancel) {
                 return false;
             }
+            self.update_gain();
             self.residual_at_refine = self.residual;
         }
         let t1 = std::time::Instant::now();
