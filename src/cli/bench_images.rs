@@ -94,7 +94,7 @@ pub fn meshed(
         Some(tolerance) => {
             nusselt_core::solver::refine::refine_adaptively(
                 problem,
-                SolverKind::Shooting,
+                SolverKind::Shooting.into(),
                 tolerance,
                 2,
                 1e-4,

@@ -336,13 +336,13 @@ fn render(args: &RenderArgs) -> Result<()> {
     let adapter = config.raster.as_ref().map(|r| r.describe());
     let solve_start = Instant::now();
     let problem = Problem::new(scene, config)?;
-    let (kind, auto_reason) = match asked {
+    let run = nusselt_core::solver::auto::RunShape {
+        progressive_image: args.seconds.is_some(),
+        link_tolerance: args.link_tolerance.is_some(),
+    };
+    let (kind, mut auto_reason) = match asked {
         Some(kind) => (kind, None),
         None => {
-            let run = nusselt_core::solver::auto::RunShape {
-                progressive_image: args.seconds.is_some(),
-                link_tolerance: args.link_tolerance.is_some(),
-            };
             let (kind, why) = nusselt_core::solver::auto::choose(&problem, run);
             if !args.quiet && !args.json {
                 eprintln!("--solver auto: {why}");
@@ -352,15 +352,33 @@ fn render(args: &RenderArgs) -> Result<()> {
     };
     let mut solver = match args.adaptive {
         Some(tolerance) => {
+            if !args.quiet && !args.json {
+                eprintln!(
+                    "--adaptive {tolerance}: {} passes, each solved to a residual of {:.0e} on {} elements and refined",
+                    args.adaptive_passes,
+                    unshot.max(1e-3),
+                    problem.mesh.elements.len()
+                );
+            }
+            let choice = match asked {
+                Some(kind) => kind.into(),
+                None => nusselt_core::solver::refine::Choice::Auto(run),
+            };
             let refined = nusselt_core::solver::refine::refine_adaptively(
                 problem,
-                kind,
+                choice,
                 tolerance,
                 args.adaptive_passes,
                 unshot,
             )?;
             if let Some(why) = &refined.stopped {
                 eprintln!("note: {why}");
+            }
+            for why in &refined.switched {
+                if !args.quiet && !args.json {
+                    eprintln!("--solver auto: {why}");
+                }
+                auto_reason = Some(why.clone());
             }
             refined.solver
         }

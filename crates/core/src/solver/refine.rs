@@ -4,6 +4,7 @@
 
 use std::sync::atomic::AtomicBool;
 
+use super::auto::{self, RunShape};
 use super::{Problem, Solver, SolverError, SolverKind, solve_to};
 use crate::scene::Rgb;
 
@@ -30,6 +31,24 @@ pub fn next_levels(
     )
 }
 
+/// Which solver solves each mesh of an adaptive run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Choice {
+    /// This one throughout (the user named it).
+    Fixed(SolverKind),
+    /// [`auto::choose`] for each mesh: a refined mesh past
+    /// [`auto::HIERARCHICAL_FROM_ELEMENTS`] is solved hierarchically, from dark, where
+    /// carrying the shooting solution would cost a row of the new mesh per patch that
+    /// shot (minutes at 300 k elements) and shooting on would cost as much again.
+    Auto(RunShape),
+}
+
+impl From<SolverKind> for Choice {
+    fn from(kind: SolverKind) -> Self {
+        Self::Fixed(kind)
+    }
+}
+
 /// The solver on the refined mesh, and why refinement stopped short of its passes where
 /// it did because the next mesh would not fit.
 pub struct Refined {
@@ -37,6 +56,8 @@ pub struct Refined {
     /// "refinement stopped at N elements: the next pass would make about M, more than the
     /// memory budget holds (K)", when it did.
     pub stopped: Option<String>,
+    /// Under [`Choice::Auto`], each change of solver on a refined mesh and why.
+    pub switched: Vec<String>,
 }
 
 /// `passes` rounds of solve (to `unshot`, at most 1e-3), mark, refine (see
@@ -47,7 +68,7 @@ pub struct Refined {
 /// textures (each level multiplies a patch's elements by about four), and says so.
 pub fn refine_adaptively(
     problem: Problem,
-    kind: SolverKind,
+    choice: Choice,
     tolerance: f64,
     passes: u8,
     unshot: f64,
@@ -55,13 +76,24 @@ pub fn refine_adaptively(
     let fit =
         crate::budget::elements_within(problem.config.memory_bytes, problem.scene.texture_bytes);
     let limit = fit.min(crate::mesh::MAX_ELEMENTS);
-    refine_within(problem, kind, tolerance, passes, unshot, limit)
+    refine_within(problem, choice, tolerance, passes, unshot, limit)
+}
+
+/// The solver `choice` makes for `problem`, and why when `auto` chose it.
+fn kind_for(problem: &Problem, choice: Choice) -> (SolverKind, Option<String>) {
+    match choice {
+        Choice::Fixed(kind) => (kind, None),
+        Choice::Auto(run) => {
+            let (kind, why) = auto::choose(problem, run);
+            (kind, Some(why))
+        }
+    }
 }
 
 /// [`refine_adaptively`] with the element limit given.
 fn refine_within(
     problem: Problem,
-    kind: SolverKind,
+    choice: Choice,
     tolerance: f64,
     passes: u8,
     unshot: f64,
@@ -69,6 +101,8 @@ fn refine_within(
 ) -> Result<Refined, SolverError> {
     let mut levels: Vec<u8> = Vec::new();
     let never = AtomicBool::new(false);
+    let mut switched = Vec::new();
+    let (mut kind, _) = kind_for(&problem, choice);
     let mut solver = kind.build(problem)?;
     for _ in 0..passes {
         solve_to(solver.as_mut(), unshot.max(1e-3));
@@ -99,6 +133,7 @@ fn refine_within(
             return Ok(Refined {
                 solver,
                 stopped: Some(stopped),
+                switched,
             });
         }
         levels = next;
@@ -111,14 +146,27 @@ fn refine_within(
             solved.config.discontinuity,
         )?;
         let refined = Problem::with_mesh(solved.scene.clone(), solved.config.clone(), mesh)?;
-        solver = match solver.carry_to(refined, &never) {
-            Ok(carried) => carried,
-            Err(refined) => kind.build(*refined)?,
+        let (next, why) = kind_for(&refined, choice);
+        solver = if next == kind {
+            match solver.carry_to(refined, &never) {
+                Ok(carried) => carried,
+                Err(refined) => kind.build(*refined)?,
+            }
+        } else {
+            drop(solver);
+            switched.push(format!(
+                "refined mesh of {} elements: {}",
+                refined.mesh.elements.len(),
+                why.unwrap_or_default()
+            ));
+            next.build(refined)?
         };
+        kind = next;
     }
     Ok(Refined {
         solver,
         stopped: None,
+        switched,
     })
 }
 
@@ -142,8 +190,8 @@ mod tests {
     fn refinement_adds_elements_and_stops_at_the_element_limit() {
         let first = cornell().mesh.elements.len();
         let patches = cornell().mesh.patches.len();
-        let refined =
-            refine_adaptively(cornell(), SolverKind::Shooting, 0.1, 1, 1e-3).expect("refined");
+        let refined = refine_adaptively(cornell(), SolverKind::Shooting.into(), 0.1, 1, 1e-3)
+            .expect("refined");
         assert!(refined.stopped.is_none());
         let refined = refined.solver;
         assert!(
@@ -154,15 +202,22 @@ mod tests {
         // Carried, not restarted: the light's shots are already on the refined mesh.
         assert!(refined.steps() > 0 && refined.residual() < 1.0);
         // A limit below what one level would make: the first mesh comes back.
-        let limited = refine_within(cornell(), SolverKind::Shooting, 0.1, 1, 1e-3, first + 1)
-            .expect("limited");
+        let limited = refine_within(
+            cornell(),
+            SolverKind::Shooting.into(),
+            0.1,
+            1,
+            1e-3,
+            first + 1,
+        )
+        .expect("limited");
         assert!(limited.stopped.is_some_and(|s| s.contains("stopped at")));
         assert_eq!(limited.solver.problem().mesh.elements.len(), first);
     }
 
     #[test]
     fn a_solver_that_cannot_carry_starts_the_refined_mesh_from_dark() {
-        let refined = refine_adaptively(cornell(), SolverKind::Jacobi, 0.1, 1, 1e-3)
+        let refined = refine_adaptively(cornell(), SolverKind::Jacobi.into(), 0.1, 1, 1e-3)
             .expect("refined")
             .solver;
         assert!(refined.problem().mesh.elements.len() > cornell().mesh.elements.len());
@@ -185,7 +240,7 @@ mod tests {
         let plain = cornell();
         let bases = cut.mesh.base_count();
         assert!(bases > plain.mesh.base_count(), "the cuts add base patches");
-        let refined = refine_adaptively(cut, SolverKind::Shooting, 0.1, 1, 1e-3)
+        let refined = refine_adaptively(cut, SolverKind::Shooting.into(), 0.1, 1, 1e-3)
             .expect("refined")
             .solver;
         let mesh = &refined.problem().mesh;

@@ -193,7 +193,7 @@ fn compute(
     let problem = Problem::new(scene, coarse).map_err(|e| e.to_string())?;
     let refined = nusselt_core::solver::refine::refine_adaptively(
         problem,
-        SolverKind::Shooting,
+        SolverKind::Shooting.into(),
         tolerance,
         PASSES,
         UNSHOT,
