@@ -403,12 +403,13 @@ fn planar_patch(
 /// Calls `emit` with the corners of each element of `poly`: a convex quad as a bilinear
 /// grid of about `size` edges; anything else triangulated, each triangle cut into a regular
 /// grid of n² triangles of at most half a `size` square each (a triangle smaller than that
-/// stays whole), or, for a sliver, bisected along its longest edge to that area.
+/// stays whole), or, for a sliver, bisected along its longest edge to that area. A quad
+/// whose grid would hold far more cells than its area and edges ask for (a sliver quad, one
+/// corner pulled far out: its grid is long both ways, its area small; fuzzing found one
+/// that made 10⁹ cells) is cut as two triangles instead.
 pub(super) fn subdivide(poly: &[DVec3], size: f64, emit: &mut dyn FnMut(&[DVec3])) {
-    if poly.len() == 4 && polygon::is_convex(poly) {
+    if let Some((nu, nv)) = quad_grid(poly, size) {
         let [p0, p1, p2, p3] = [poly[0], poly[1], poly[2], poly[3]];
-        let nu = steps(((p1 - p0).length()).max((p2 - p3).length()), size);
-        let nv = steps(((p3 - p0).length()).max((p2 - p1).length()), size);
         let at = |i: usize, j: usize| {
             let (u, v) = (i as f64 / nu as f64, j as f64 / nv as f64);
             (p0 * (1.0 - u) + p1 * u) * (1.0 - v) + (p3 * (1.0 - u) + p2 * u) * v
@@ -448,6 +449,20 @@ pub(super) fn subdivide(poly: &[DVec3], size: f64, emit: &mut dyn FnMut(&[DVec3]
             }
         }
     }
+}
+
+/// The bilinear grid's cells along and across a convex quad `poly` at `size`, unless the
+/// grid would be over four times the cells its area and its edges need (then `None`, as
+/// for any other polygon).
+fn quad_grid(poly: &[DVec3], size: f64) -> Option<(usize, usize)> {
+    if poly.len() != 4 || !polygon::is_convex(poly) {
+        return None;
+    }
+    let [p0, p1, p2, p3] = [poly[0], poly[1], poly[2], poly[3]];
+    let nu = steps(((p1 - p0).length()).max((p2 - p3).length()), size);
+    let nv = steps(((p3 - p0).length()).max((p2 - p1).length()), size);
+    let needed = polygon::area(poly) / (size * size) + (nu + nv) as f64;
+    ((nu * nv) as f64 <= 4.0 * needed).then_some((nu, nv))
 }
 
 /// Longest-edge bisection of a triangle (orientation kept) until each piece has at most

@@ -45,6 +45,38 @@ fn triangles_subdivide_with_right_area() {
     assert!((out.iter().sum::<f64>() - 4.5).abs() < 1e-12);
 }
 
+/// A thin strip keeps its grid (one row of cells along it); a convex quad with one corner
+/// pulled 1,000 sizes out, whose grid would be 1,000 × 1,000 cells over an area of a few
+/// hundred, is cut as triangles to about its area's count.
+#[test]
+fn a_sliver_quad_is_cut_by_its_area_and_a_strip_by_its_length() {
+    let strip = [
+        DVec3::ZERO,
+        DVec3::new(100.0, 0.0, 0.0),
+        DVec3::new(100.0, 0.1, 0.0),
+        DVec3::new(0.0, 0.1, 0.0),
+    ];
+    let mut count = 0;
+    subdivide(&strip, 1.0, &mut |_| count += 1);
+    assert_eq!(count, 100);
+    let sliver = [
+        DVec3::ZERO,
+        DVec3::new(0.2, 0.0, 0.0),
+        DVec3::new(1000.0, 0.5, 0.0),
+        DVec3::new(0.0, 0.2, 0.0),
+    ];
+    assert!(polygon::is_convex(&sliver));
+    let area = polygon::area(&sliver);
+    let mut pieces = Vec::new();
+    subdivide(&sliver, 1.0, &mut |c| pieces.push(polygon::area(c)));
+    assert!((pieces.iter().sum::<f64>() - area).abs() < 1e-9 * area);
+    assert!(
+        (pieces.len() as f64) < 4.0 * (area / 0.5 + 1.0),
+        "{} pieces for an area of {area}",
+        pieces.len()
+    );
+}
+
 #[test]
 fn vertices_are_not_shared_across_creases_or_materials() {
     let scene = cornell();
