@@ -230,6 +230,34 @@ mod tests {
         assert_eq!(s.geometry.element_size, first.geometry.element_size);
     }
 
+    /// A scene file opened in a running viewer meshes and solves as the file says, as
+    /// `nusselt view FILE` does (they were ignored: the file's lights and camera applied,
+    /// its mesh and solver did not).
+    #[test]
+    fn an_opened_scene_file_brings_its_mesh_and_solver() {
+        let dir = std::env::temp_dir().join(format!("nusselt-open-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("coarse.scene.json");
+        std::fs::write(
+            &path,
+            r#"{"builtin": "cornell", "mesh": {"element_size": 90, "patch_size": 180},
+                "solver": {"name": "jacobi", "formfactor": "hemicube", "unshot": 0.01}}"#,
+        )
+        .unwrap();
+        let first = snapshot_after(Vec::new(), |_| true);
+        assert_eq!(first.geometry.element_size, 60.0);
+        let s = snapshot_after(vec![Command::LoadPath(path)], |s| {
+            s.geometry.element_size != 60.0
+        });
+        assert_eq!(s.geometry.element_size, 90.0);
+        assert_eq!(s.solver_kind, nusselt_core::solver::SolverKind::Jacobi);
+        assert_eq!(
+            s.method,
+            nusselt_core::formfactor::FormFactorMethod::Hemicube
+        );
+        assert!(s.geometry.elements < first.geometry.elements);
+    }
+
     /// "Save scene" writes the mesh's element size and the solver settings in use.
     #[test]
     fn saved_scenes_carry_mesh_and_solver_settings() {

@@ -460,7 +460,8 @@ impl Worker {
                 }
             }
             Command::LoadPath(path) => match load_path(&path) {
-                Ok(scene) => self.load(scene),
+                Ok((scene, None)) => self.load(scene),
+                Ok((scene, Some(file))) => self.load_scene_file(scene, &file),
                 Err(e) => self.send_event(Event::Error(e.to_string())),
             },
             Command::LoadScene(scene) => self.load(*scene),
@@ -517,6 +518,58 @@ impl Worker {
         self.install(scene, config);
     }
 
+    /// A scene file opened from the viewer: its mesh and solver settings apply as they do
+    /// to `nusselt view FILE` (the file's `mesh` replaces the mesh settings, unset fields
+    /// at their defaults; `solver.name` "auto" is shooting here, as in `view`). The
+    /// file's values were checked when it was read.
+    fn load_scene_file(&mut self, mut scene: Scene, file: &nusselt_core::scene::SceneFile) {
+        if let Some(solver) = &file.solver {
+            let kind = match solver.name.as_deref() {
+                None => None,
+                Some("auto") => Some(SolverKind::Shooting),
+                Some(name) => SolverKind::parse(name, None),
+            };
+            if let Some(kind) = kind {
+                self.kind = kind;
+            }
+            if let Some(method) = solver.formfactor.as_deref().and_then(|m| m.parse().ok()) {
+                self.config.method = method;
+                if method == nusselt_core::formfactor::FormFactorMethod::GpuHemicube
+                    && self.config.raster.is_none()
+                {
+                    match nusselt_gpu::GpuHemicube::new() {
+                        Ok(gpu) => self.config.raster = Some(Arc::new(gpu)),
+                        Err(e) => {
+                            self.send_event(Event::Error(format!(
+                                "gpu-hemicube: {e}; using contour"
+                            )));
+                            self.config.method =
+                                nusselt_core::formfactor::FormFactorMethod::Contour;
+                        }
+                    }
+                }
+            }
+            if let Some(unshot) = solver.unshot {
+                self.stop_unshot = unshot;
+            }
+        }
+        let Some(mesh) = file.mesh else {
+            self.load(scene);
+            return;
+        };
+        if let Some(message) = scene.add_default_lights() {
+            self.send_event(Event::Notice(format!("{}: {message}", scene.name)));
+        }
+        let config = SolverConfig {
+            element_size: mesh.element_size,
+            patch_size: mesh.patch_size,
+            max_elements: mesh.max_elements,
+            discontinuity: mesh.discontinuity,
+            ..self.config.clone()
+        };
+        self.install(scene, config);
+    }
+
     fn set_material(&mut self, id: MaterialId, reflectance: Rgb, emission: Rgb) {
         let Some(s) = self.solver.as_mut() else {
             return;
@@ -535,11 +588,15 @@ impl Worker {
     }
 }
 
-/// A model or a scene file, by extension.
-fn load_path(path: &std::path::Path) -> Result<Scene, nusselt_core::scene::SceneError> {
+/// A model, or a scene file and the scene it describes, by extension.
+fn load_path(
+    path: &std::path::Path,
+) -> Result<(Scene, Option<nusselt_core::scene::SceneFile>), nusselt_core::scene::SceneError> {
     if nusselt_core::scene::is_scene_file(path) {
-        nusselt_core::scene::SceneFile::read(path)?.load(path)
+        let file = nusselt_core::scene::SceneFile::read(path)?;
+        let scene = file.load(path)?;
+        Ok((scene, Some(file)))
     } else {
-        Scene::load(path, &LoadOptions::default())
+        Ok((Scene::load(path, &LoadOptions::default())?, None))
     }
 }
