@@ -165,6 +165,9 @@ pub struct LightsPanel {
     scene_rev: u64,
     /// Lights switched off, kept to switch on again.
     pub off: Vec<Light>,
+    /// Area lights switched off (radiance 0, the mesh kept): their radiance, by index in
+    /// the snapshot's area lights, to switch on again.
+    pub area_off: std::collections::BTreeMap<usize, Rgb>,
     pub area_form: Option<AreaForm>,
     pub placing: Option<Placing>,
 }
@@ -301,7 +304,22 @@ fn area_rows(
         let c = a.centre();
         let r = a.radiance;
         ui.horizontal(|ui| {
-            ui.label(format!("area light {}", k + 1));
+            // Off is radiance 0 on the same face: a material edit, so switching a light
+            // off and on goes on from the current solution instead of re-meshing.
+            let mut on = !state.area_off.contains_key(&k);
+            if ui
+                .checkbox(&mut on, format!("area light {}", k + 1))
+                .changed()
+            {
+                let mut lights = (*snap.area_lights).clone();
+                if on {
+                    lights[k].radiance = state.area_off.remove(&k).unwrap_or(r);
+                } else {
+                    state.area_off.insert(k, r);
+                    lights[k].radiance = Rgb::ZERO;
+                }
+                actions.push(Action::SetAreaLights(lights));
+            }
             if ui.small_button("edit").clicked() {
                 state.area_form = Some(AreaForm::editing(k, a));
             }
@@ -310,6 +328,12 @@ fn area_rows(
                 lights.remove(k);
                 actions.push(Action::SetAreaLights(lights));
                 state.area_form = None;
+                // Indices after `k` move down one.
+                state.area_off = std::mem::take(&mut state.area_off)
+                    .into_iter()
+                    .filter(|(i, _)| *i != k)
+                    .map(|(i, r)| (if i > k { i - 1 } else { i }, r))
+                    .collect();
             }
         });
         ui.label(format!(
@@ -689,6 +713,36 @@ mod tests {
         h.get_by_label("delete").click();
         h.run();
         assert!(sent_areas(&h).is_empty());
+    }
+
+    /// An area light's box switches it off as radiance 0 on the same face (shape kept,
+    /// so the solver thread takes it as a material edit) and on again at its radiance.
+    #[test]
+    fn an_area_light_is_switched_off_and_on_in_place() {
+        let a = AreaLight::square(
+            DVec3::new(278.0, 540.0, 278.0),
+            DVec3::NEG_Y,
+            100.0,
+            Rgb::new(9.0, 8.0, 7.0),
+        )
+        .unwrap();
+        let snap = snapshot_after(vec![Command::SetAreaLights(vec![a.clone()])], |s| {
+            s.area_lights.len() == 1
+        });
+        let mut h = harness(snap);
+        h.get_by_label("area light 1").click();
+        h.run();
+        let off = sent_areas(&h);
+        assert_eq!(off.len(), 1);
+        assert_eq!(off[0].corners, a.corners);
+        assert_eq!(off[0].radiance, Rgb::ZERO);
+        h.state_mut().actions.clear();
+        h.get_by_label("area light 1").click();
+        h.run();
+        let on = sent_areas(&h);
+        assert_eq!(on[0].corners, a.corners);
+        assert_eq!(on[0].radiance, a.radiance);
+        assert!(h.state().lights.area_off.is_empty());
     }
 
     #[test]

@@ -108,6 +108,16 @@ impl Scene {
             .collect()
     }
 
+    /// The material of each area light, in the order of [`Scene::area_lights`]: its
+    /// radiance is that material's emission, so a change of radiance alone is a material
+    /// edit (no new faces, no re-meshing).
+    pub fn area_light_materials(&self) -> Vec<MaterialId> {
+        (0..self.faces.len())
+            .filter(|&f| self.is_area_light_face(f))
+            .map(|f| self.faces[f].material)
+            .collect()
+    }
+
     /// Replaces the area lights with `lights` (each checked first: on error nothing
     /// changes). Returns, per old material, its new id (`None`: an area light's, removed);
     /// the new lights' materials follow the kept ones.
@@ -195,7 +205,11 @@ mod tests {
         assert_eq!(scene.area_lights(), vec![b, c]);
         assert_eq!(scene.materials.len(), materials.len() + 2);
         assert_eq!(scene.materials.last().unwrap().name, "area light 2");
+        let ids = scene.area_light_materials();
+        assert_eq!(ids.len(), 2);
+        assert_eq!(scene.materials[ids[1].0 as usize].emission, Rgb::splat(4.0));
         scene.set_area_lights(&[]).unwrap();
+        assert!(scene.area_light_materials().is_empty());
         assert_eq!(shapes(&scene.faces), faces);
         assert_eq!(scene.materials, materials);
     }

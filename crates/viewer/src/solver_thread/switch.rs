@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use nusselt_core::formfactor::FormFactorMethod;
 use nusselt_core::formfactor::hemicube::ItemBufferRaster;
-use nusselt_core::scene::{AreaLight, Material, MaterialId};
+use nusselt_core::scene::{AreaLight, Material, MaterialId, Rgb};
 use nusselt_core::solver::{Problem, RowCache, SolverKind};
 
 use super::Event;
@@ -69,7 +69,10 @@ impl Worker {
     /// Replaces the area lights and re-meshes at the current element size, from dark;
     /// other lights, material edits and the camera stay. A refused list (a degenerate
     /// light, a power overflow, a mesh over the budget) leaves the scene and the solve as
-    /// they were.
+    /// they were. A list that changes only radiances (a colour or power edit, a light
+    /// switched off as radiance 0 and on again) is applied as edits of the lights'
+    /// materials instead: no re-meshing, and the solve goes on from where it is as for
+    /// any material edit.
     pub(super) fn set_area_lights(&mut self, lights: Vec<AreaLight>) {
         let checked = lights
             .iter()
@@ -77,6 +80,9 @@ impl Worker {
             .try_for_each(|(k, l)| l.check(k + 1));
         if let Err(e) = checked {
             self.send_event(Event::Error(e.to_string()));
+            return;
+        }
+        if self.set_area_radiance(&lights) {
             return;
         }
         let Some(solver) = self.solver.take() else {
@@ -115,6 +121,41 @@ impl Worker {
                 self.build(problem, rows);
             }
         }
+    }
+
+    /// When `lights` are the current area lights in shape and order, sets each changed
+    /// radiance as its material's emission and returns true (the loaded materials follow,
+    /// so "reset edits" leaves the lights as set, as after a re-mesh).
+    fn set_area_radiance(&mut self, lights: &[AreaLight]) -> bool {
+        let Some(solver) = self.solver.as_ref() else {
+            return false;
+        };
+        let scene = &solver.problem().scene;
+        let current = scene.area_lights();
+        let same_shape = current.len() == lights.len()
+            && current
+                .iter()
+                .zip(lights)
+                .all(|(a, b)| a.corners == b.corners);
+        if !same_shape {
+            return false;
+        }
+        let ids = scene.area_light_materials();
+        let edits: Vec<(MaterialId, Rgb, Rgb)> = ids
+            .iter()
+            .zip(current.iter().zip(lights))
+            .filter(|(_, (a, b))| a.radiance != b.radiance)
+            .map(|(&id, (_, b))| (id, scene.materials[id.0 as usize].reflectance, b.radiance))
+            .collect();
+        for (id, reflectance, emission) in edits {
+            self.set_material(id, reflectance, emission);
+            let mut loaded = (*self.loaded_materials).clone();
+            if let Some(m) = loaded.get_mut(id.0 as usize) {
+                m.emission = emission;
+            }
+            self.loaded_materials = Arc::new(loaded);
+        }
+        true
     }
 
     /// Switches the form-factor method (cached rows dropped) and restarts from dark. The
@@ -256,6 +297,76 @@ mod tests {
             nusselt_core::formfactor::FormFactorMethod::Hemicube
         );
         assert!(s.geometry.elements < first.geometry.elements);
+    }
+
+    /// A change of an area light's radiance alone (its colour, its power, switched off
+    /// as 0) is a material edit: the mesh stays and the shots already made stay, where a
+    /// re-mesh would start from dark.
+    #[test]
+    fn an_area_light_power_edit_keeps_the_mesh_and_the_light_shot() {
+        use super::super::{SolverHandle, ThreadConfig};
+        use nusselt_core::scene::{LoadOptions, Scene};
+        use nusselt_core::solver::SolverConfig;
+        use std::time::{Duration, Instant};
+        let a = AreaLight::square(
+            DVec3::new(278.0, 500.0, 278.0),
+            DVec3::NEG_Y,
+            120.0,
+            Rgb::splat(5.0),
+        )
+        .unwrap();
+        let brighter = AreaLight {
+            radiance: Rgb::new(10.0, 8.0, 6.0),
+            ..a.clone()
+        };
+        let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+        let config = ThreadConfig {
+            solver: SolverConfig {
+                element_size: Some(60.0),
+                patch_size: Some(120.0),
+                ..Default::default()
+            },
+            play: false,
+            ..Default::default()
+        };
+        let mut h = SolverHandle::spawn(scene, config, Box::new(|| {})).expect("spawn");
+        let wait = |h: &mut SolverHandle, want: &dyn Fn(&crate::snapshot::Snapshot) -> bool| {
+            let deadline = Instant::now() + Duration::from_secs(120);
+            loop {
+                assert!(Instant::now() < deadline, "no matching snapshot");
+                if let Some(s) = h.take_snapshot()
+                    && want(&s)
+                {
+                    return s;
+                }
+                std::thread::sleep(Duration::from_millis(2));
+            }
+        };
+        h.send(Command::SetAreaLights(vec![a])).expect("queue");
+        let mut shot = wait(&mut h, &|s| s.area_lights.len() == 1);
+        for _ in 0..5 {
+            h.send(Command::Step).expect("queue");
+            let steps = shot.stats.steps;
+            shot = wait(&mut h, &move |s| s.stats.steps > steps);
+        }
+        assert!(shot.stats.steps >= 5);
+        h.send(Command::SetAreaLights(vec![brighter.clone()]))
+            .expect("queue");
+        let want = brighter.radiance;
+        let s = wait(&mut h, &move |s| {
+            s.area_lights.first().is_some_and(|l| l.radiance == want)
+        });
+        assert!(h.shutdown(Duration::from_secs(30)));
+        assert_eq!(s.geometry.id, shot.geometry.id, "re-meshed");
+        assert!(
+            s.stats.steps >= shot.stats.steps,
+            "restarted: {} steps after {}",
+            s.stats.steps,
+            shot.stats.steps
+        );
+        let id = s.materials.iter().position(|m| m.emission == want);
+        assert!(id.is_some(), "the light's material carries the radiance");
+        assert_eq!(s.loaded_materials[id.unwrap()].emission, want);
     }
 
     /// "Save scene" writes the mesh's element size and the solver settings in use.

@@ -570,7 +570,7 @@ impl Worker {
         self.install(scene, config);
     }
 
-    fn set_material(&mut self, id: MaterialId, reflectance: Rgb, emission: Rgb) {
+    pub(super) fn set_material(&mut self, id: MaterialId, reflectance: Rgb, emission: Rgb) {
         let Some(s) = self.solver.as_mut() else {
             return;
         };
