@@ -292,6 +292,57 @@ fn the_auto_pass_follows_the_time_budget() {
     }
 }
 
+/// Without a time, `--pass auto` counts work instead of timing it: the summary carries the
+/// counts and an estimate made from them at fixed rates (preparation 5e5 light form factors
+/// a second, pixels 1.5e6 light evaluations a second; `src/cli/pass.rs`), no budget, and two
+/// runs make the same choice and the same image.
+#[test]
+fn the_default_auto_pass_counts_work_instead_of_timing_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let run = |out: &str| -> serde_json::Value {
+        let out = dir.path().join(out);
+        let json = nusselt(&[
+            "render",
+            "--builtin",
+            "cornell",
+            "--element-size",
+            "60",
+            "--width",
+            "24",
+            "--height",
+            "24",
+            "--spp",
+            "4",
+            "--json",
+            "--quiet",
+            "--out",
+            out.to_str().expect("utf-8"),
+        ]);
+        serde_json::from_str(json.trim()).expect("json")
+    };
+    let (a, b) = (run("a.pfm"), run("b.pfm"));
+    assert_eq!(a["pass"], "direct", "{a}");
+    assert!(a["time_budget"].is_null(), "{a}");
+    let prep = a["pass_work"]["light_form_factors"].as_f64().expect("prep");
+    let pixels = a["pass_work"]["light_evaluations"]
+        .as_f64()
+        .expect("pixels");
+    // A row of every element per light patch: a whole, non-zero number of rows.
+    let elements = a["elements"].as_f64().expect("elements");
+    assert!(prep >= elements && prep % elements == 0.0, "{a}");
+    // At least one light evaluation per camera sample of the image (24² pixels × 4).
+    assert!(pixels >= (24 * 24 * 4) as f64, "{a}");
+    let estimate = a["pass_estimate_seconds"].as_f64().expect("estimate");
+    assert!(
+        (estimate - (prep / 5e5 + pixels / 1.5e6)).abs() < 1e-9 * estimate,
+        "{a}"
+    );
+    assert_eq!(a["pass_work"], b["pass_work"], "counts differ between runs");
+    let ia = Image::load_pfm(&dir.path().join("a.pfm")).expect("a");
+    let ib = Image::load_pfm(&dir.path().join("b.pfm")).expect("b");
+    assert_eq!(ia.pixels, ib.pixels);
+}
+
 /// A scene file's mesh and solver settings are `render`'s defaults: its element size
 /// reaches the mesh, and a flag given overrides it; a bad setting is refused by its path.
 #[test]

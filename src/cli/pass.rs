@@ -1,18 +1,30 @@
 //! `render --pass`: which second pass makes the image from the solution, and `auto` (the
-//! default): the most accurate pass whose estimated time fits what is left of the time the
-//! user gives (`--time-budget`, whole run, default [`DEFAULT_TIME_BUDGET`]).
+//! default): the most accurate pass whose cost fits.
 //!
 //! Why these two: on the Cornell box the direct pass (exact direct light per pixel) is the
 //! most accurate (1.39 % against the path-traced reference at the default mesh,
 //! `docs/BENCHMARKS.md`), then the vertex pass (1.69 %); the final gather at its default 64
-//! rays is noisier than either (6.0 %), so `auto` never picks it. The vertex pass costs a fraction of a second at
-//! any size and is the fallback. The direct pass's cost grows with the pixels and the light
-//! faces, so it is measured, not guessed: its per-solution work (indirect vertex radiance,
-//! display BVH, lights) is done once, then a probe renders 1/16 of the pixels (a quarter of
-//! the width and height, same camera and samples) and its time is scaled by 16. Known error
-//! of the estimate: the probe's pixels are larger, so more of them straddle edges and get
-//! edge samples; it overestimates a little, so a run chosen to fit does fit, and one near
-//! the limit may get the vertex pass.
+//! rays is noisier than either (6.0 %), so `auto` never picks it. The vertex pass costs a
+//! fraction of a second at any size and is the fallback.
+//!
+//! The direct pass's cost is counted, not timed, so that the same command on the same input
+//! makes the same image on an idle machine and a loaded one (a clock made the VeachAjar
+//! model 16.0 % or 23.2 % from its reference, by the machine's load): its preparation
+//! computes a form-factor row per light patch (light patches × elements form factors), then
+//! a probe renders 1/16 of the pixels (a quarter of the width and height, same camera and
+//! samples) and its work in light evaluations ([`render::direct::DirectLight::work`]) is
+//! scaled by 16. The two counts become seconds at fixed rates, the slowest measured on the
+//! 2-core machine the figures come from (`render --time-budget 1000`, 256², release,
+//! 2026-12-05): preparation 0.6–2.0 M light form factors a second (gallery, Cornell box,
+//! VeachAjar), pixels 1.5–3.8 M light evaluations a second (Dabrovic atrium, bijoutier,
+//! Cornell variants, water Cornell box, gallery, VeachAjar); the direct pass is taken when
+//! the total is at most [`DEFAULT_TIME_BUDGET`] seconds. So the estimate errs long, by up
+//! to 2.5× on the fastest scenes; the probe's larger pixels straddle more edges and get
+//! more edge samples, another small overestimate.
+//!
+//! With `--time-budget S` (or `--seconds S`, the whole command) the user asks for time:
+//! then the probe is timed and the direct pass taken when the run so far plus the probe's
+//! time scaled to the image fits S, as a deadline must.
 
 use std::time::Instant;
 
@@ -22,8 +34,14 @@ use nusselt_core::render::{self, Image, Pass, RenderSettings};
 use nusselt_core::scene::Rgb;
 use nusselt_core::solver::Problem;
 
-/// Seconds a whole `render` run may take (load to image) when `--time-budget` is not given.
+/// Seconds the counted limits stand for (what the direct pass may take by default).
 pub const DEFAULT_TIME_BUDGET: f64 = 10.0;
+/// Light form factors a second of the direct pass's preparation computes: the slowest
+/// rate measured (module docs), so that the estimate errs long.
+const PREP_PER_SECOND: f64 = 5e5;
+/// Light evaluations a second of the direct pass's pixels makes: the slowest rate
+/// measured (module docs).
+const PIXEL_PER_SECOND: f64 = 1.5e6;
 /// The probe renders 1/`PROBE_SCALE`² of the pixels.
 const PROBE_SCALE: u32 = 4;
 
@@ -31,9 +49,10 @@ const PROBE_SCALE: u32 = 4;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum PassChoice {
     Fixed(Pass),
-    /// The most accurate pass that fits in `budget` seconds of the whole run.
+    /// The most accurate pass whose counted cost is within the limits (`budget: None`), or
+    /// that fits in `budget` seconds of the whole run, timed.
     Auto {
-        budget: f64,
+        budget: Option<f64>,
     },
 }
 
@@ -45,9 +64,7 @@ pub fn parse_pass(name: &str, budget: Option<f64>) -> Result<PassChoice> {
         bail!("--time-budget must be a positive number of seconds, got {b}");
     }
     if name == "auto" {
-        return Ok(PassChoice::Auto {
-            budget: budget.unwrap_or(DEFAULT_TIME_BUDGET),
-        });
+        return Ok(PassChoice::Auto { budget });
     }
     let Some(fixed) = Pass::parse(name) else {
         bail!("unknown --pass '{name}' (expected auto, vertex, direct or gather)");
@@ -63,45 +80,45 @@ impl PassChoice {
     pub fn within(self, seconds: Option<f64>) -> PassChoice {
         match (self, seconds) {
             (PassChoice::Auto { budget }, Some(s)) => PassChoice::Auto {
-                budget: budget.min(s),
+                budget: Some(budget.map_or(s, |b| b.min(s))),
             },
             (choice, _) => choice,
         }
     }
 }
 
-/// The pass chosen, and for `auto` the direct pass's estimated seconds and the budget.
+/// The pass chosen, and for `auto` the direct pass's estimated seconds, the budget when
+/// one was given, the counted work, and why.
 pub struct Chosen {
     pub pass: Pass,
     pub estimate: Option<f64>,
     pub budget: Option<f64>,
+    /// Counted: the preparation's form factors and the pixels' light evaluations (the
+    /// latter estimated from the probe; `None` where no probe ran).
+    pub work: Option<(f64, Option<f64>)>,
+    reason: Option<String>,
 }
 
 impl Chosen {
-    /// One line for the user: what was chosen and why.
+    fn fixed(pass: Pass) -> Chosen {
+        Chosen {
+            pass,
+            estimate: None,
+            budget: None,
+            work: None,
+            reason: None,
+        }
+    }
+
+    /// One line for the user: what `auto` chose and why.
     pub fn describe(&self) -> Option<String> {
-        let budget = self.budget?;
-        let Some(estimate) = self.estimate else {
-            return Some(format!(
-                "pass: vertex (the solve used the whole {budget} s budget; --time-budget or --pass direct for the direct pass)"
-            ));
-        };
-        Some(match self.pass {
-            Pass::Direct => format!(
-                "pass: direct (about {estimate:.1} s, within the {budget} s budget; --pass vertex is faster)"
-            ),
-            _ => format!(
-                "pass: vertex (the direct pass would take about {estimate:.1} s, past the {budget} s budget; --time-budget or --pass direct to have it)"
-            ),
-        })
+        self.reason.clone()
     }
 }
 
 /// Renders the image `choice` asks for after the solve (`started`: the run's start;
-/// `gather_rays`: for `--pass gather`): for `auto`, the direct pass's per-solution work is
-/// done once, a probe of 1/16 of the pixels is timed, and the direct pass is taken when the
-/// run so far plus the probe's time scaled to the image fits the budget; when the run so
-/// far has used the budget already, the vertex pass without a probe.
+/// `gather_rays`: for `--pass gather`); for `auto` by counted work ([`counted`]) or, with
+/// a budget in seconds, by time ([`timed`]).
 pub fn render_chosen(
     choice: PassChoice,
     started: Instant,
@@ -110,54 +127,155 @@ pub fn render_chosen(
     settings: &RenderSettings,
     gather_rays: u32,
 ) -> (Chosen, Image) {
-    let budget = match choice {
+    match choice {
         PassChoice::Fixed(pass) => {
             let image = pass.render(problem, radiance, settings, gather_rays);
-            let chosen = Chosen {
-                pass,
-                estimate: None,
-                budget: None,
-            };
-            return (chosen, image);
+            (Chosen::fixed(pass), image)
         }
-        PassChoice::Auto { budget } => budget,
-    };
-    // Preparing the direct pass computes every light patch's form-factor row: minutes on a
-    // large mesh, so not even tried once the budget is spent.
-    if started.elapsed().as_secs_f64() >= budget {
-        let image = Pass::Vertex.render(problem, radiance, settings, gather_rays);
+        PassChoice::Auto { budget: None } => counted(problem, radiance, settings),
+        PassChoice::Auto {
+            budget: Some(budget),
+        } => timed(budget, started, problem, radiance, settings),
+    }
+}
+
+/// Form factors the direct pass's preparation computes: a row per light patch.
+fn prep_work(problem: &Problem) -> f64 {
+    let lights = problem
+        .mesh
+        .patches
+        .iter()
+        .filter(|p| problem.scene.materials[p.material.0 as usize].emission != Rgb::ZERO)
+        .count();
+    lights as f64 * problem.mesh.elements.len() as f64
+}
+
+/// The vertex pass, with `reason`.
+fn vertex(
+    problem: &Problem,
+    radiance: &[Rgb],
+    settings: &RenderSettings,
+    chosen: Chosen,
+) -> (Chosen, Image) {
+    let image = Pass::Vertex.render(problem, radiance, settings, 0);
+    (chosen, image)
+}
+
+/// `auto` without a time: the direct pass when its counted work, at the measured rates,
+/// takes at most [`DEFAULT_TIME_BUDGET`] seconds; the same choice on any machine.
+fn counted(problem: &Problem, radiance: &[Rgb], settings: &RenderSettings) -> (Chosen, Image) {
+    let prep = prep_work(problem);
+    let prep_seconds = prep / PREP_PER_SECOND;
+    if prep_seconds > DEFAULT_TIME_BUDGET {
         let chosen = Chosen {
             pass: Pass::Vertex,
-            estimate: None,
-            budget: Some(budget),
+            estimate: Some(prep_seconds),
+            budget: None,
+            work: Some((prep, None)),
+            reason: Some(format!(
+                "pass: vertex (the direct pass would first compute {prep:.2e} light form factors, about {prep_seconds:.0} s on the reference machine, past its {DEFAULT_TIME_BUDGET} s; --pass direct to have it)"
+            )),
         };
-        return (chosen, image);
+        return vertex(problem, radiance, settings, chosen);
     }
     let direct = render::direct::Prepared::new(problem, radiance);
-    let probe = RenderSettings {
+    let probe = probe_settings(settings);
+    direct.render(&probe);
+    let pixels = direct.work() as f64 * pixel_scale(settings, &probe);
+    let estimate = prep_seconds + pixels / PIXEL_PER_SECOND;
+    let fits = estimate <= DEFAULT_TIME_BUDGET;
+    let reason = if fits {
+        format!(
+            "pass: direct ({pixels:.2e} light evaluations, about {estimate:.1} s on the reference machine, within {DEFAULT_TIME_BUDGET} s; --pass vertex is faster)"
+        )
+    } else {
+        format!(
+            "pass: vertex (the direct pass would take {pixels:.2e} light evaluations, about {estimate:.0} s on the reference machine, past {DEFAULT_TIME_BUDGET} s; --pass direct to have it)"
+        )
+    };
+    let chosen = Chosen {
+        pass: if fits { Pass::Direct } else { Pass::Vertex },
+        estimate: Some(estimate),
+        budget: None,
+        work: Some((prep, Some(pixels))),
+        reason: Some(reason),
+    };
+    if fits {
+        let image = direct.render(settings);
+        (chosen, image)
+    } else {
+        drop(direct);
+        vertex(problem, radiance, settings, chosen)
+    }
+}
+
+/// The probe: 1/[`PROBE_SCALE`]² of the pixels, same camera and samples.
+fn probe_settings(settings: &RenderSettings) -> RenderSettings {
+    RenderSettings {
         width: settings.width.div_ceil(PROBE_SCALE),
         height: settings.height.div_ceil(PROBE_SCALE),
         ..*settings
-    };
+    }
+}
+
+/// Pixels of the image over pixels of the probe.
+fn pixel_scale(settings: &RenderSettings, probe: &RenderSettings) -> f64 {
+    (settings.width as f64 * settings.height as f64) / (probe.width as f64 * probe.height as f64)
+}
+
+/// `auto` with a time: the direct pass when the run so far plus the probe's time scaled to
+/// the image fits `budget`; when the run so far has used the budget already, the vertex
+/// pass without a probe (preparing the direct pass computes every light patch's row:
+/// minutes on a large mesh).
+fn timed(
+    budget: f64,
+    started: Instant,
+    problem: &Problem,
+    radiance: &[Rgb],
+    settings: &RenderSettings,
+) -> (Chosen, Image) {
+    if started.elapsed().as_secs_f64() >= budget {
+        let chosen = Chosen {
+            budget: Some(budget),
+            reason: Some(format!(
+                "pass: vertex (the solve used the whole {budget} s budget; --time-budget or --pass direct for the direct pass)"
+            )),
+            ..Chosen::fixed(Pass::Vertex)
+        };
+        return vertex(problem, radiance, settings, chosen);
+    }
+    let direct = render::direct::Prepared::new(problem, radiance);
+    let probe = probe_settings(settings);
     let probe_start = Instant::now();
     direct.render(&probe);
-    let scale = (settings.width as f64 * settings.height as f64)
-        / (probe.width as f64 * probe.height as f64);
-    let estimate = probe_start.elapsed().as_secs_f64() * scale;
+    let estimate = probe_start.elapsed().as_secs_f64() * pixel_scale(settings, &probe);
     let fits = started.elapsed().as_secs_f64() + estimate <= budget;
-    let (pass, image) = if fits {
-        (Pass::Direct, direct.render(settings))
+    let reason = if fits {
+        format!(
+            "pass: direct (about {estimate:.1} s, within the {budget} s budget; --pass vertex is faster)"
+        )
     } else {
-        drop(direct);
-        let image = Pass::Vertex.render(problem, radiance, settings, gather_rays);
-        (Pass::Vertex, image)
+        format!(
+            "pass: vertex (the direct pass would take about {estimate:.1} s, past the {budget} s budget; --time-budget or --pass direct to have it)"
+        )
     };
     let chosen = Chosen {
-        pass,
+        pass: if fits { Pass::Direct } else { Pass::Vertex },
         estimate: Some(estimate),
         budget: Some(budget),
+        work: Some((
+            prep_work(problem),
+            Some(direct.work() as f64 * pixel_scale(settings, &probe)),
+        )),
+        reason: Some(reason),
     };
-    (chosen, image)
+    if fits {
+        let image = direct.render(settings);
+        (chosen, image)
+    } else {
+        drop(direct);
+        vertex(problem, radiance, settings, chosen)
+    }
 }
 
 #[cfg(test)]
@@ -168,13 +286,11 @@ mod tests {
     fn pass_and_budget_are_read_together() {
         assert_eq!(
             parse_pass("auto", None).expect("auto"),
-            PassChoice::Auto {
-                budget: DEFAULT_TIME_BUDGET
-            }
+            PassChoice::Auto { budget: None }
         );
         assert_eq!(
             parse_pass("auto", Some(2.5)).expect("auto"),
-            PassChoice::Auto { budget: 2.5 }
+            PassChoice::Auto { budget: Some(2.5) }
         );
         assert_eq!(
             parse_pass("direct", None).expect("direct"),

@@ -81,13 +81,15 @@ pub struct RenderArgs {
     /// and shadow rays, the indirect rest from the solution; sharper shadows, about 0.5 s more
     /// at 256²), `gather` (direct per pixel plus one bounce gathered from the solution by 64
     /// cosine-weighted rays per pixel: the solution's error averaged over what each point
-    /// sees, several seconds more) or `auto` (default): `direct` when its time, measured on
-    /// a probe of 1/16 of the pixels, fits in what is left of --time-budget, else `vertex`.
+    /// sees, several seconds more) or `auto` (default): `direct` when its work, counted on
+    /// a probe of 1/16 of the pixels, comes to at most 10 s at the reference machine's
+    /// rates (the same choice on any machine and under any load), else `vertex`; with
+    /// --time-budget (or --seconds) the probe is timed against what is left of it instead.
     #[arg(long, default_value = "auto")]
     pub pass: String,
     /// Seconds the whole run may take (load, mesh, solve, render) for `--pass auto` to choose
-    /// the most accurate pass that fits (default 10, at most --seconds). The solve is not
-    /// cut short by it: --seconds does that.
+    /// the most accurate pass that fits, by the clock (at most --seconds; without either,
+    /// `auto` counts work instead). The solve is not cut short by it: --seconds does that.
     #[arg(long, allow_negative_numbers = true)]
     pub time_budget: Option<f64>,
     /// A priori discontinuity meshing: cut the surfaces along the shadow outlines each
@@ -544,6 +546,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         "solve_seconds": solve_seconds,
         "pass": chosen.pass.name(),
         "pass_estimate_seconds": chosen.estimate,
+        "pass_work": chosen.work.map(|(prep, pixels)| serde_json::json!({"light_form_factors": prep, "light_evaluations": pixels})),
         "time_budget": chosen.budget,
         "render_seconds": render_seconds,
         "exposure": exposure,

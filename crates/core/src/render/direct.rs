@@ -18,7 +18,7 @@
 //! [`contour::point_to_polygon`]: crate::formfactor::contour::point_to_polygon
 //! [`exact::point_to_visible_polygon`]: crate::formfactor::exact::point_to_visible_polygon
 
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use glam::DVec3;
 
@@ -63,6 +63,8 @@ pub struct DirectLight<'a> {
     /// The solver's blocker BVH (ids: occluder groups).
     blockers: &'a Bvh,
     epsilon: f64,
+    /// Work done so far, in light evaluations ([`DirectLight::work`]).
+    work: AtomicU64,
 }
 
 impl<'a> DirectLight<'a> {
@@ -115,7 +117,17 @@ impl<'a> DirectLight<'a> {
             glass,
             blockers: &problem.bvh,
             epsilon: problem.epsilon,
+            work: AtomicU64::new(0),
         }
+    }
+
+    /// The work of every [`DirectLight::incident`] so far, counted the same on any machine
+    /// and under any load: per call, one unit per light's form factor, one per blocker
+    /// clipped exactly, one per shadow ray (sampled lights, suns and points). A measure of
+    /// time that is not a clock, so that `render --pass auto` chooses the same pass for
+    /// the same input everywhere.
+    pub fn work(&self) -> u64 {
+        self.work.load(Ordering::Relaxed)
     }
 
     /// The suns' and point lights' part of [`DirectLight::incident`].
@@ -135,9 +147,27 @@ impl<'a> DirectLight<'a> {
     /// `own`, plus the suns and point lights: the direct irradiance over π, what `ρ` turns
     /// into radiance. The sky is not in it (it stays in the interpolated solution).
     pub fn incident(&self, p: DVec3, n: DVec3, own: u32, rng: &mut Rng) -> Rgb {
-        let mut sum = self.punctual_incident(p, n, own, rng);
+        let mut work = self.punctual.len() as u64;
+        let punctual = self.punctual_incident(p, n, own, rng);
+        let sum = self.area_incident(punctual, p, n, own, rng, &mut work);
+        self.work.fetch_add(work, Ordering::Relaxed);
+        sum
+    }
+
+    /// `sum` plus the emitting faces' part of [`DirectLight::incident`], adding its work
+    /// to `work`.
+    fn area_incident(
+        &self,
+        mut sum: Rgb,
+        p: DVec3,
+        n: DVec3,
+        own: u32,
+        rng: &mut Rng,
+        work: &mut u64,
+    ) -> Rgb {
         let origin = p + n * self.epsilon;
         for l in &self.lights {
+            *work += 1;
             let f = formfactor::contour::point_to_polygon_with_normal(p, n, &l.polygon, l.normal);
             if f <= 0.0 {
                 continue;
@@ -166,6 +196,7 @@ impl<'a> DirectLight<'a> {
                             .iter()
                             .map(|&k| self.blockers.stored_triangle(k).to_vec())
                             .collect();
+                        *work += blockers.len() as u64;
                         let visible =
                             exact::point_to_visible_polygon(origin, n, &l.polygon, &blockers);
                         sum += l.emission * visible.clamp(0.0, f);
@@ -173,6 +204,7 @@ impl<'a> DirectLight<'a> {
                     }
                 }
             }
+            *work += SHADOW_RAYS as u64;
             let total = *l.cumulative.last().unwrap_or(&0.0);
             let (mut seen, mut all) = (0.0, 0.0);
             let m = (SHADOW_RAYS as f64).sqrt().ceil() as usize;
@@ -287,6 +319,11 @@ impl<'a> Prepared<'a> {
             bvh: super::display_bvh(&problem.scene, &problem.mesh),
             lights: DirectLight::new(problem),
         }
+    }
+
+    /// The per-pixel work of every image rendered so far ([`DirectLight::work`]).
+    pub fn work(&self) -> u64 {
+        self.lights.work()
     }
 
     /// The image [`render_solution`] makes.
