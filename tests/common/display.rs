@@ -67,13 +67,16 @@ pub fn display() -> Result<Display, String> {
         .spawn()
         .map_err(|e| format!("cannot start Xvfb: {e}"))?;
     let stdout = child.stdout.take().ok_or("Xvfb has no stdout")?;
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        use std::io::BufRead;
-        let mut line = String::new();
-        let _ = std::io::BufReader::new(stdout).read_line(&mut line);
-        let _ = tx.send(line);
-    });
+    let (tx, rx) = std::sync::mpsc::sync_channel(1);
+    std::thread::Builder::new()
+        .name("xvfb-displayfd".into())
+        .spawn(move || {
+            use std::io::BufRead;
+            let mut line = String::new();
+            let _ = std::io::BufReader::new(stdout).read_line(&mut line);
+            let _ = tx.send(line);
+        })
+        .map_err(|e| format!("cannot read Xvfb's display number: {e}"))?;
     let number = rx
         .recv_timeout(Duration::from_secs(30))
         .ok()
