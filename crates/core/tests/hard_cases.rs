@@ -743,3 +743,38 @@ fn a_vertex_stretched_far_out_meshes_within_the_element_budget() {
         mesh.elements.len()
     );
 }
+
+/// Found by fuzzing (`fuzz/`, target `gltf_solve`, 2026-12-05): a GLB whose positions are
+/// near 1e32 with a few tiny triangles among large ones. The T-vertex search used cells of
+/// the median element's side, so every long edge walked millions of cells (and sorted
+/// them): `nusselt render` on it with default flags spent 32 s meshing 16 k elements in
+/// release, minutes in a debug build. The cells now grow until the walks are short. What
+/// is checked is what the fuzz target checks, at the default mesh: it loads, meshes, and
+/// shoots 3 times with finite, non-negative radiance. (Speed is not asserted: 0.5 s here
+/// in a debug build, 10 s with the cells left at the median side; a return of the walks
+/// shows as this test taking minutes.)
+#[test]
+fn a_huge_scale_glb_meshes_and_shoots() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../tests/data/fuzz/huge_scale.glb");
+    let scene = nusselt_core::scene::Scene::load(&path, &Default::default()).expect("loads");
+    let d = scene.bounds().diagonal();
+    assert!(d > 1e30, "the scale that made it slow: {d}");
+    let config = nusselt_core::solver::SolverConfig::default();
+    let mut s = nusselt_core::solver::ProgressiveSolver::new(scene, config).expect("meshes");
+    s.run(
+        &nusselt_core::solver::StopCriteria {
+            unshot: 0.0,
+            max_shots: Some(3),
+            ..Default::default()
+        },
+        &std::sync::atomic::AtomicBool::new(false),
+        &mut |_| {},
+    );
+    let radiance = s.element_radiance(true);
+    assert!(
+        radiance
+            .iter()
+            .all(|b| b.is_finite() && b.min_element() >= 0.0)
+    );
+}

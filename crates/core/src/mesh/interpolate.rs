@@ -195,7 +195,21 @@ impl Mesh {
             let (_, median, _) = areas.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
             median.sqrt()
         };
-        let cell = typical.min(self.element_size).max(eps);
+        // Coarser where most edges are far longer than the typical element (a few tiny
+        // faces beside large ones): the walks along the edges then visit at most about 16
+        // cells an edge in all, instead of millions each.
+        let (mut edge_length, mut edges) = (0.0, 0usize);
+        for e in &self.elements {
+            let n = e.corner_count as usize;
+            for k in 0..n {
+                edge_length += (e.corners[(k + 1) % n] - e.corners[k]).length();
+                edges += 1;
+            }
+        }
+        let mut cell = typical.min(self.element_size).max(eps);
+        while edge_length / (0.5 * cell) > 16.0 * edges as f64 && cell.is_finite() {
+            cell *= 2.0;
+        }
         let key = |p: DVec3| {
             let q = (p / cell).floor();
             (q.x as i64, q.y as i64, q.z as i64)
@@ -219,19 +233,30 @@ impl Mesh {
                     key(pa.min(pb) - DVec3::splat(eps)),
                     key(pa.max(pb) + DVec3::splat(eps)),
                 );
-                // The cells that can hold a vertex on the edge: its bounding box, or for a
-                // long edge (a large element beside small ones) the cells along it.
-                let mut cells: Vec<(i64, i64, i64)> = Vec::new();
-                if (hi.0 - lo.0 + 1) * (hi.1 - lo.1 + 1) * (hi.2 - lo.2 + 1) <= 64 {
+                // The vertices that can lie on the edge: those in the cells of its bounding
+                // box, or for a long edge (a large element beside small ones) in the cells
+                // along it, or every vertex where that walk would visit more cells than
+                // there are vertices (an edge millions of cells long: a fuzzed model at
+                // 1e32 scale walked 10^7 steps an edge and sorted 27 cells a step).
+                let span = |a: i64, b: i64| b.abs_diff(a) as f64 + 1.0;
+                let box_cells = span(lo.0, hi.0) * span(lo.1, hi.1) * span(lo.2, hi.2);
+                let walk = (len2.sqrt() / (0.5 * cell)).ceil();
+                let mut candidates: Vec<u32> = Vec::new();
+                if box_cells <= 64.0 {
                     for x in lo.0..=hi.0 {
                         for y in lo.1..=hi.1 {
                             for z in lo.2..=hi.2 {
-                                cells.push((x, y, z));
+                                if let Some(list) = grid.get(&(x, y, z)) {
+                                    candidates.extend_from_slice(list);
+                                }
                             }
                         }
                     }
+                } else if 27.0 * walk > self.vertices.len() as f64 {
+                    candidates.extend(0..self.vertices.len() as u32);
                 } else {
-                    let steps = (len2.sqrt() / (0.5 * cell)).ceil().min(1e7) as usize;
+                    let steps = walk as usize;
+                    let mut cells: Vec<(i64, i64, i64)> = Vec::new();
                     for i in 0..=steps {
                         let c = key(pa + d * (i as f64 / steps.max(1) as f64));
                         for dx in -1..=1 {
@@ -244,23 +269,23 @@ impl Mesh {
                     }
                     cells.sort_unstable();
                     cells.dedup();
+                    for cell_key in cells {
+                        if let Some(list) = grid.get(&cell_key) {
+                            candidates.extend_from_slice(list);
+                        }
+                    }
                 }
-                for cell_key in cells {
-                    let Some(list) = grid.get(&cell_key) else {
+                for v in candidates {
+                    if v == a || v == b || vertex_group[v as usize] != group {
                         continue;
-                    };
-                    for &v in list {
-                        if v == a || v == b || vertex_group[v as usize] != group {
-                            continue;
-                        }
-                        let p = self.vertices[v as usize];
-                        let t = (p - pa).dot(d) / len2;
-                        if t <= 1e-9 || t >= 1.0 - 1e-9 {
-                            continue;
-                        }
-                        if (pa + d * t - p).length() < eps * 10.0 {
-                            found.entry(v).or_insert(TVertex { vertex: v, a, b, t });
-                        }
+                    }
+                    let p = self.vertices[v as usize];
+                    let t = (p - pa).dot(d) / len2;
+                    if t <= 1e-9 || t >= 1.0 - 1e-9 {
+                        continue;
+                    }
+                    if (pa + d * t - p).length() < eps * 10.0 {
+                        found.entry(v).or_insert(TVertex { vertex: v, a, b, t });
                     }
                 }
             }
