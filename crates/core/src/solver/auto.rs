@@ -9,11 +9,25 @@
 //! hierarchy's links follow the light. Shooting stays the choice wherever an image is
 //! wanted before the end (the viewer, a `--seconds` limit): it improves with every shot,
 //! where the hierarchy shows nothing before its refinement ends.
+//!
+//! Below 100,000 elements what decides is how far the light spreads: a shot costs a row of
+//! form factors to every element, and where a sky or many lit surfaces spread the light
+//! every patch has to shoot, so converging costs at least patches × elements form factors.
+//! Measured with default flags (`render --solver S --pass vertex --json`, release,
+//! 2026-12-05; solve seconds to a residual of 1e-4, shooting / hierarchical): VeachAjar
+//! (1.6e7 pairs) 3.2 / 4.2, the water Cornell box (1.7e7) 7.5 / 2.7, the Cornell box
+//! (2.2e7) 5.8 / 3.7 but 1.78 % / 2.05 % from its reference, the bijoutier shop (8.2e7)
+//! 24.2 / 5.1, the Dabrovic atrium (3.3e8) over 150 / 9.1, the Šibenik cathedral (7.1e8)
+//! 300 / 16. Hence [`HIERARCHICAL_FROM_PAIRS`].
 
 use super::{Problem, SolverKind};
 
 /// Elements above which a run without a time limit is solved hierarchically.
 pub const HIERARCHICAL_FROM_ELEMENTS: usize = 100_000;
+
+/// Patch × element pairs (the form factors of every patch shooting once) above which a run
+/// without a time limit is solved hierarchically, at any element count (module docs).
+pub const HIERARCHICAL_FROM_PAIRS: f64 = 5e7;
 
 /// What the run asks of the solver, besides the scene.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -33,11 +47,13 @@ pub fn choose(problem: &Problem, run: RunShape) -> (SolverKind, String) {
             "hierarchical: --link-tolerance is its refinement threshold".into(),
         );
     }
-    if n <= HIERARCHICAL_FROM_ELEMENTS {
+    let patches = problem.mesh.patches.len();
+    let pairs = n as f64 * patches as f64;
+    if n <= HIERARCHICAL_FROM_ELEMENTS && pairs <= HIERARCHICAL_FROM_PAIRS {
         return (
             SolverKind::Shooting,
             format!(
-                "shooting: {n} elements (at most {HIERARCHICAL_FROM_ELEMENTS}), where progressive refinement converges in seconds and shows every shot"
+                "shooting: {n} elements (at most {HIERARCHICAL_FROM_ELEMENTS}) and {patches} patches, where progressive refinement converges in seconds and shows every shot"
             ),
         );
     }
@@ -46,6 +62,14 @@ pub fn choose(problem: &Problem, run: RunShape) -> (SolverKind, String) {
             SolverKind::Shooting,
             format!(
                 "shooting: {n} elements, but an image is wanted before the end (viewer or --seconds) and shooting improves with every shot; hierarchical shows nothing before its refinement ends"
+            ),
+        );
+    }
+    if n <= HIERARCHICAL_FROM_ELEMENTS {
+        return (
+            SolverKind::Hierarchical,
+            format!(
+                "hierarchical: {n} elements × {patches} patches = {pairs:.1e} form factors for every patch to shoot once (more than {HIERARCHICAL_FROM_PAIRS:.0e}): its links follow the light"
             ),
         );
     }
@@ -81,6 +105,15 @@ mod tests {
             why.contains(&small.mesh.elements.len().to_string()),
             "{why}"
         );
+        // Under the element limit but with more pairs than the limit: 40 k elements in
+        // about 2,500 patches of 16 elements.
+        let spread = cornell(40_000);
+        let pairs = spread.mesh.elements.len() as f64 * spread.mesh.patches.len() as f64;
+        assert!(spread.mesh.elements.len() <= HIERARCHICAL_FROM_ELEMENTS);
+        assert!(pairs > HIERARCHICAL_FROM_PAIRS, "{pairs}");
+        let (kind, why) = choose(&spread, RunShape::default());
+        assert_eq!(kind, SolverKind::Hierarchical, "{why}");
+        assert!(why.contains("patches"), "{why}");
         let large = cornell(2 * HIERARCHICAL_FROM_ELEMENTS);
         assert!(large.mesh.elements.len() > HIERARCHICAL_FROM_ELEMENTS);
         assert_eq!(
