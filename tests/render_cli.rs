@@ -245,6 +245,30 @@ fn render_reports_its_error_against_a_reference() {
     );
 }
 
+/// `render --json` of a coarse Cornell box at 24² pixels and 4 samples into `out`, with
+/// `extra` flags; the summary line.
+fn small_cornell(out: &Path, extra: &[&str]) -> serde_json::Value {
+    let common = [
+        "render",
+        "--builtin",
+        "cornell",
+        "--element-size",
+        "60",
+        "--width",
+        "24",
+        "--height",
+        "24",
+        "--spp",
+        "4",
+        "--json",
+        "--quiet",
+        "--out",
+    ];
+    let out = out.to_str().expect("utf-8");
+    let json = nusselt(&[&common[..], &[out], extra].concat());
+    serde_json::from_str(json.trim()).expect("json")
+}
+
 /// `--pass auto` (the default) takes the direct pass when the time budget leaves room for it
 /// and the vertex pass when the run has already used it up (1 ms: the load alone takes
 /// longer), and says which in the summary; the image is then that pass's, pixel for pixel.
@@ -253,26 +277,7 @@ fn render_reports_its_error_against_a_reference() {
 fn the_auto_pass_follows_the_time_budget() {
     let dir = tempfile::tempdir().expect("tempdir");
     let p = |name: &str| dir.path().join(name).to_str().expect("utf-8").to_string();
-    let run = |out: &str, extra: &[&str]| -> serde_json::Value {
-        let common = [
-            "render",
-            "--builtin",
-            "cornell",
-            "--element-size",
-            "60",
-            "--width",
-            "24",
-            "--height",
-            "24",
-            "--spp",
-            "4",
-            "--json",
-            "--quiet",
-            "--out",
-        ];
-        let json = nusselt(&[&common[..], &[out], extra].concat());
-        serde_json::from_str(json.trim()).expect("json")
-    };
+    let run = |out: &str, extra: &[&str]| small_cornell(Path::new(out), extra);
     let roomy = run(&p("auto.pfm"), &["--time-budget", "1000"]);
     assert_eq!(roomy["pass"], "direct", "{roomy}");
     assert!(roomy["pass_estimate_seconds"].as_f64().expect("estimate") > 0.0);
@@ -299,27 +304,7 @@ fn the_auto_pass_follows_the_time_budget() {
 #[test]
 fn the_default_auto_pass_counts_work_instead_of_timing_it() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let run = |out: &str| -> serde_json::Value {
-        let out = dir.path().join(out);
-        let json = nusselt(&[
-            "render",
-            "--builtin",
-            "cornell",
-            "--element-size",
-            "60",
-            "--width",
-            "24",
-            "--height",
-            "24",
-            "--spp",
-            "4",
-            "--json",
-            "--quiet",
-            "--out",
-            out.to_str().expect("utf-8"),
-        ]);
-        serde_json::from_str(json.trim()).expect("json")
-    };
+    let run = |out: &str| small_cornell(&dir.path().join(out), &[]);
     let (a, b) = (run("a.pfm"), run("b.pfm"));
     assert_eq!(a["pass"], "direct", "{a}");
     assert!(a["time_budget"].is_null(), "{a}");

@@ -110,6 +110,23 @@ impl Chosen {
         }
     }
 
+    /// `auto`'s choice after a probe: the direct pass where it `fits`.
+    fn decided(
+        fits: bool,
+        estimate: f64,
+        budget: Option<f64>,
+        (prep, pixels): (f64, f64),
+        reason: String,
+    ) -> Chosen {
+        Chosen {
+            pass: if fits { Pass::Direct } else { Pass::Vertex },
+            estimate: Some(estimate),
+            budget,
+            work: Some((prep, Some(pixels))),
+            reason: Some(reason),
+        }
+    }
+
     /// One line for the user: what `auto` chose and why.
     pub fn describe(&self) -> Option<String> {
         self.reason.clone()
@@ -193,14 +210,19 @@ fn counted(problem: &Problem, radiance: &[Rgb], settings: &RenderSettings) -> (C
             "pass: vertex (the direct pass would take {pixels:.2e} light evaluations, about {estimate:.0} s on the reference machine, past {DEFAULT_TIME_BUDGET} s; --pass direct to have it)"
         )
     };
-    let chosen = Chosen {
-        pass: if fits { Pass::Direct } else { Pass::Vertex },
-        estimate: Some(estimate),
-        budget: None,
-        work: Some((prep, Some(pixels))),
-        reason: Some(reason),
-    };
-    if fits {
+    let chosen = Chosen::decided(fits, estimate, None, (prep, pixels), reason);
+    finish(direct, chosen, problem, radiance, settings)
+}
+
+/// The image of the pass `chosen` names: the prepared direct pass, or the vertex pass.
+fn finish(
+    direct: render::direct::Prepared,
+    chosen: Chosen,
+    problem: &Problem,
+    radiance: &[Rgb],
+    settings: &RenderSettings,
+) -> (Chosen, Image) {
+    if chosen.pass == Pass::Direct {
         let image = direct.render(settings);
         (chosen, image)
     } else {
@@ -259,23 +281,10 @@ fn timed(
             "pass: vertex (the direct pass would take about {estimate:.1} s, past the {budget} s budget; --time-budget or --pass direct to have it)"
         )
     };
-    let chosen = Chosen {
-        pass: if fits { Pass::Direct } else { Pass::Vertex },
-        estimate: Some(estimate),
-        budget: Some(budget),
-        work: Some((
-            prep_work(problem),
-            Some(direct.work() as f64 * pixel_scale(settings, &probe)),
-        )),
-        reason: Some(reason),
-    };
-    if fits {
-        let image = direct.render(settings);
-        (chosen, image)
-    } else {
-        drop(direct);
-        vertex(problem, radiance, settings, chosen)
-    }
+    let pixels = direct.work() as f64 * pixel_scale(settings, &probe);
+    let work = (prep_work(problem), pixels);
+    let chosen = Chosen::decided(fits, estimate, Some(budget), work, reason);
+    finish(direct, chosen, problem, radiance, settings)
 }
 
 #[cfg(test)]
