@@ -10,6 +10,11 @@ use nusselt_core::solver::{
 };
 
 fn furnace_problem(rho: f64) -> Problem {
+    furnace_meshed(rho, Some(0.25), Some(0.5))
+}
+
+/// The closed furnace at reflectance `rho`, meshed at these sizes.
+fn furnace_meshed(rho: f64, element_size: Option<f64>, patch_size: Option<f64>) -> Problem {
     let scene = Scene::builtin(
         "furnace",
         &LoadOptions {
@@ -19,8 +24,8 @@ fn furnace_problem(rho: f64) -> Problem {
     )
     .expect("furnace");
     let config = SolverConfig {
-        element_size: Some(0.25),
-        patch_size: Some(0.5),
+        element_size,
+        patch_size,
         ..Default::default()
     };
     Problem::new(scene, config).expect("problem")
@@ -288,19 +293,7 @@ fn a_mesh_over_the_memory_budget_is_refused_before_meshing() {
 fn hierarchical_and_wavelet_hold_the_furnace_identity() {
     for rho in [0.5, 0.9, 0.99] {
         for kind in [SolverKind::Hierarchical, SolverKind::Wavelet] {
-            let scene = Scene::builtin(
-                "furnace",
-                &LoadOptions {
-                    rho: Some(rho),
-                    ..Default::default()
-                },
-            )
-            .expect("furnace");
-            let config = SolverConfig {
-                element_size: Some(0.1),
-                ..Default::default()
-            };
-            let problem = Problem::new(scene, config).expect("problem");
+            let problem = furnace_meshed(rho, Some(0.1), None);
             assert_eq!(problem.mesh.elements.len(), 864);
             let mut s = kind.build(problem).expect("solver");
             solve(s.as_mut(), 1e-6);
