@@ -267,6 +267,30 @@ impl Element {
     pub fn vertex_ids(&self) -> &[u32] {
         &self.vertices[..self.corner_count as usize]
     }
+
+    /// The point of the element at `(u1, u2)` in [0, 1)²: area-uniform for uniform
+    /// `(u1, u2)` (a quad's two triangles picked by `u1` in proportion to their areas).
+    pub fn point_at(&self, u1: f64, u2: f64) -> DVec3 {
+        use crate::geometry::sampling::triangle_point;
+        let c = self.corners();
+        if c.len() == 3 {
+            return triangle_point(c[0], c[1], c[2], u1, u2);
+        }
+        let a1 = polygon::area(&[c[0], c[1], c[2]]);
+        let a2 = polygon::area(&[c[0], c[2], c[3]]);
+        let split = a1 / (a1 + a2).max(f64::MIN_POSITIVE);
+        if u1 < split {
+            triangle_point(c[0], c[1], c[2], u1 / split.max(1e-300), u2)
+        } else {
+            triangle_point(
+                c[0],
+                c[2],
+                c[3],
+                (u1 - split) / (1.0 - split).max(1e-300),
+                u2,
+            )
+        }
+    }
 }
 
 /// A vertex that lies inside the edge `a`–`b` of a neighbouring element.

@@ -23,10 +23,9 @@
 //! [`MIN_GAIN`, `MAX_GAIN`] so such elements, and receivers whose links the memory budget
 //! cut short, are not lifted without bound.
 
-use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::geometry::sampling::{cosine_hemisphere, hash_seed, triangle_point};
+use crate::geometry::sampling::{cosine_hemisphere, hash_seed};
 use crate::geometry::{Bvh, Ray, Rng};
 use crate::mesh::{Element, Mesh};
 
@@ -115,7 +114,7 @@ fn covered(e: &Element, own: u32, bvh: &Bvh, epsilon: f64, side: usize, seed: u6
         for j in 0..side {
             let u1 = (i as f64 + rng.next_f64()) / side as f64;
             let u2 = (j as f64 + rng.next_f64()) / side as f64;
-            let x = point_on(e, rng.next_f64(), rng.next_f64());
+            let x = e.point_at(rng.next_f64(), rng.next_f64());
             let ray = Ray::new(x + e.normal * epsilon, cosine_hemisphere(e.normal, u1, u2));
             if bvh.any_hit_except(&ray, 0.0, f64::INFINITY, [own, u32::MAX]) {
                 hits += 1;
@@ -123,20 +122,6 @@ fn covered(e: &Element, own: u32, bvh: &Bvh, epsilon: f64, side: usize, seed: u6
         }
     }
     hits as f64 / (side * side) as f64
-}
-
-/// A point of the element (uniform on a triangle; on a quad's two triangles by `u1`).
-fn point_on(e: &Element, u1: f64, u2: f64) -> DVec3 {
-    let c = e.corners();
-    if c.len() == 4 {
-        if u1 < 0.5 {
-            triangle_point(c[0], c[1], c[2], 2.0 * u1, u2)
-        } else {
-            triangle_point(c[0], c[2], c[3], 2.0 * u1 - 1.0, u2)
-        }
-    } else {
-        triangle_point(c[0], c[1], c[2], u1, u2)
-    }
 }
 
 /// The factor that brings kernel sum `sum` to `target`, within [`MIN_GAIN`, `MAX_GAIN`];

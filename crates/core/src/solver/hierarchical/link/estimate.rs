@@ -9,8 +9,8 @@ use glam::DVec3;
 use super::super::tree::Node;
 use super::{Linker, RAYS, RAYS_PARTIAL, RECEIVER_POINTS, SENDER_POINTS};
 use crate::formfactor::contour;
-use crate::geometry::sampling::{hash_seed, triangle_point};
-use crate::geometry::{Ray, Rng, polygon};
+use crate::geometry::sampling::hash_seed;
+use crate::geometry::{Ray, Rng};
 
 impl Linker<'_> {
     /// Normal-incidence kernel at `x` facing `dir` (towards the sender's centroid).
@@ -145,26 +145,8 @@ impl Linker<'_> {
     pub(super) fn point_on(&self, node: &Node, u: f64, rng: &mut Rng) -> (DVec3, DVec3, u32) {
         let e = &self.mesh.elements[self.tree.element_at(node, u.min(1.0 - 1e-12)) as usize];
         let group = self.mesh.patches[e.patch.0 as usize].occluder;
-        let c = e.corners();
         let (u1, u2) = (rng.next_f64(), rng.next_f64());
-        let p = if c.len() == 3 {
-            triangle_point(c[0], c[1], c[2], u1, u2)
-        } else {
-            let a1 = polygon::area(&[c[0], c[1], c[2]]);
-            let a2 = polygon::area(&[c[0], c[2], c[3]]);
-            let split = a1 / (a1 + a2).max(f64::MIN_POSITIVE);
-            if u1 < split {
-                triangle_point(c[0], c[1], c[2], u1 / split.max(1e-300), u2)
-            } else {
-                triangle_point(
-                    c[0],
-                    c[2],
-                    c[3],
-                    (u1 - split) / (1.0 - split).max(1e-300),
-                    u2,
-                )
-            }
-        };
+        let p = e.point_at(u1, u2);
         (p, e.normal, group)
     }
 }
