@@ -147,31 +147,26 @@ impl Worker {
             .filter(|(_, (a, b))| a.radiance != b.radiance)
             .map(|(&id, (_, b))| (id, scene.materials[id.0 as usize].reflectance, b.radiance))
             .collect();
+        if edits.is_empty() {
+            return true;
+        }
+        let mut loaded = (*self.loaded_materials).clone();
         for (id, reflectance, emission) in edits {
             self.set_material(id, reflectance, emission);
-            let mut loaded = (*self.loaded_materials).clone();
             if let Some(m) = loaded.get_mut(id.0 as usize) {
                 m.emission = emission;
             }
-            self.loaded_materials = Arc::new(loaded);
         }
+        self.loaded_materials = Arc::new(loaded);
         true
     }
 
     /// Switches the form-factor method (cached rows dropped) and restarts from dark. The
     /// GPU hemicube is started on first use; if it cannot be, nothing changes.
     pub(super) fn set_method(&mut self, method: FormFactorMethod) {
-        if method == FormFactorMethod::GpuHemicube && self.config.raster.is_none() {
-            match nusselt_gpu::GpuHemicube::new() {
-                Ok(gpu) => {
-                    let raster: Arc<dyn ItemBufferRaster> = Arc::new(gpu);
-                    self.config.raster = Some(raster);
-                }
-                Err(e) => {
-                    self.send_event(Event::Error(format!("gpu-hemicube: {e}")));
-                    return;
-                }
-            }
+        if let Err(e) = self.start_raster_for(method) {
+            self.send_event(Event::Error(e));
+            return;
         }
         let Some(solver) = self.solver.take() else {
             return;
@@ -184,6 +179,17 @@ impl Worker {
         rows.clear();
         self.config.method = method;
         self.build(problem, rows);
+    }
+
+    /// Starts the GPU hemicube when `method` needs it and it is not running yet; the
+    /// reason when it cannot be started.
+    pub(super) fn start_raster_for(&mut self, method: FormFactorMethod) -> Result<(), String> {
+        if method == FormFactorMethod::GpuHemicube && self.config.raster.is_none() {
+            let gpu = nusselt_gpu::GpuHemicube::new().map_err(|e| format!("gpu-hemicube: {e}"))?;
+            let raster: Arc<dyn ItemBufferRaster> = Arc::new(gpu);
+            self.config.raster = Some(raster);
+        }
+        Ok(())
     }
 
     /// Switches to a solver of `kind` on the same mesh and cached rows, from dark. Refused
@@ -304,10 +310,8 @@ mod tests {
     /// re-mesh would start from dark.
     #[test]
     fn an_area_light_power_edit_keeps_the_mesh_and_the_light_shot() {
-        use super::super::{SolverHandle, ThreadConfig};
-        use nusselt_core::scene::{LoadOptions, Scene};
-        use nusselt_core::solver::SolverConfig;
-        use std::time::{Duration, Instant};
+        use crate::teach::panel_tests::{coarse_cornell_thread, wait_for};
+        use std::time::Duration;
         let a = AreaLight::square(
             DVec3::new(278.0, 500.0, 278.0),
             DVec3::NEG_Y,
@@ -319,41 +323,19 @@ mod tests {
             radiance: Rgb::new(10.0, 8.0, 6.0),
             ..a.clone()
         };
-        let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
-        let config = ThreadConfig {
-            solver: SolverConfig {
-                element_size: Some(60.0),
-                patch_size: Some(120.0),
-                ..Default::default()
-            },
-            play: false,
-            ..Default::default()
-        };
-        let mut h = SolverHandle::spawn(scene, config, Box::new(|| {})).expect("spawn");
-        let wait = |h: &mut SolverHandle, want: &dyn Fn(&crate::snapshot::Snapshot) -> bool| {
-            let deadline = Instant::now() + Duration::from_secs(120);
-            loop {
-                assert!(Instant::now() < deadline, "no matching snapshot");
-                if let Some(s) = h.take_snapshot()
-                    && want(&s)
-                {
-                    return s;
-                }
-                std::thread::sleep(Duration::from_millis(2));
-            }
-        };
+        let mut h = coarse_cornell_thread();
         h.send(Command::SetAreaLights(vec![a])).expect("queue");
-        let mut shot = wait(&mut h, &|s| s.area_lights.len() == 1);
+        let mut shot = wait_for(&mut h, |s| s.area_lights.len() == 1);
         for _ in 0..5 {
             h.send(Command::Step).expect("queue");
             let steps = shot.stats.steps;
-            shot = wait(&mut h, &move |s| s.stats.steps > steps);
+            shot = wait_for(&mut h, move |s| s.stats.steps > steps);
         }
         assert!(shot.stats.steps >= 5);
         h.send(Command::SetAreaLights(vec![brighter.clone()]))
             .expect("queue");
         let want = brighter.radiance;
-        let s = wait(&mut h, &move |s| {
+        let s = wait_for(&mut h, move |s| {
             s.area_lights.first().is_some_and(|l| l.radiance == want)
         });
         assert!(h.shutdown(Duration::from_secs(30)));

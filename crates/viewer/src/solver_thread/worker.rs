@@ -505,16 +505,22 @@ impl Worker {
         file
     }
 
-    fn load(&mut self, mut scene: Scene) {
-        if let Some(message) = scene.add_default_lights() {
-            self.send_event(Event::Notice(format!("{}: {message}", scene.name)));
-        }
+    fn load(&mut self, scene: Scene) {
         // A new scene gets its own default element size, the other settings stay.
         let config = SolverConfig {
             element_size: None,
             patch_size: None,
             ..self.config.clone()
         };
+        self.install_lit(scene, config);
+    }
+
+    /// [`Worker::install`] after default lights are added to a scene without any (and
+    /// the user told so).
+    fn install_lit(&mut self, mut scene: Scene, config: SolverConfig) {
+        if let Some(message) = scene.add_default_lights() {
+            self.send_event(Event::Notice(format!("{}: {message}", scene.name)));
+        }
         self.install(scene, config);
     }
 
@@ -522,7 +528,7 @@ impl Worker {
     /// to `nusselt view FILE` (the file's `mesh` replaces the mesh settings, unset fields
     /// at their defaults; `solver.name` "auto" is shooting here, as in `view`). The
     /// file's values were checked when it was read.
-    fn load_scene_file(&mut self, mut scene: Scene, file: &nusselt_core::scene::SceneFile) {
+    fn load_scene_file(&mut self, scene: Scene, file: &nusselt_core::scene::SceneFile) {
         if let Some(solver) = &file.solver {
             let kind = match solver.name.as_deref() {
                 None => None,
@@ -533,21 +539,13 @@ impl Worker {
                 self.kind = kind;
             }
             if let Some(method) = solver.formfactor.as_deref().and_then(|m| m.parse().ok()) {
-                self.config.method = method;
-                if method == nusselt_core::formfactor::FormFactorMethod::GpuHemicube
-                    && self.config.raster.is_none()
-                {
-                    match nusselt_gpu::GpuHemicube::new() {
-                        Ok(gpu) => self.config.raster = Some(Arc::new(gpu)),
-                        Err(e) => {
-                            self.send_event(Event::Error(format!(
-                                "gpu-hemicube: {e}; using contour"
-                            )));
-                            self.config.method =
-                                nusselt_core::formfactor::FormFactorMethod::Contour;
-                        }
+                self.config.method = match self.start_raster_for(method) {
+                    Ok(()) => method,
+                    Err(e) => {
+                        self.send_event(Event::Error(format!("{e}; using contour")));
+                        nusselt_core::formfactor::FormFactorMethod::Contour
                     }
-                }
+                };
             }
             if let Some(unshot) = solver.unshot {
                 self.stop_unshot = unshot;
@@ -557,9 +555,6 @@ impl Worker {
             self.load(scene);
             return;
         };
-        if let Some(message) = scene.add_default_lights() {
-            self.send_event(Event::Notice(format!("{}: {message}", scene.name)));
-        }
         let config = SolverConfig {
             element_size: mesh.element_size,
             patch_size: mesh.patch_size,
@@ -567,7 +562,7 @@ impl Worker {
             discontinuity: mesh.discontinuity,
             ..self.config.clone()
         };
-        self.install(scene, config);
+        self.install_lit(scene, config);
     }
 
     pub(super) fn set_material(&mut self, id: MaterialId, reflectance: Rgb, emission: Rgb) {

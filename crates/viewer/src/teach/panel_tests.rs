@@ -51,14 +51,10 @@ fn harness(view: TeachView, snapshot: Option<Arc<Snapshot>>) -> Harness<'static,
     h
 }
 
-/// A solver thread on a coarse Cornell box (paused) and its first snapshot matching `want`
-/// after `commands`.
-pub(crate) fn snapshot_after(
-    commands: Vec<Command>,
-    want: impl Fn(&Snapshot) -> bool,
-) -> Arc<Snapshot> {
+/// A solver thread on a coarse Cornell box (60 mm elements), paused.
+pub(crate) fn coarse_cornell_thread() -> SolverHandle {
     let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
-    let mut h = SolverHandle::spawn(
+    SolverHandle::spawn(
         scene,
         ThreadConfig {
             solver: SolverConfig {
@@ -71,20 +67,34 @@ pub(crate) fn snapshot_after(
         },
         Box::new(|| {}),
     )
-    .expect("spawn");
-    for c in commands {
-        h.send(c).expect("queue");
-    }
+    .expect("spawn")
+}
+
+/// The first snapshot of `h` matching `want` (within 120 s).
+pub(crate) fn wait_for(h: &mut SolverHandle, want: impl Fn(&Snapshot) -> bool) -> Arc<Snapshot> {
     let deadline = Instant::now() + Duration::from_secs(120);
-    let s = loop {
+    loop {
         assert!(Instant::now() < deadline, "no matching snapshot");
         if let Some(s) = h.take_snapshot()
             && want(&s)
         {
-            break s;
+            return s;
         }
         std::thread::sleep(Duration::from_millis(2));
-    };
+    }
+}
+
+/// A solver thread on a coarse Cornell box (paused) and its first snapshot matching `want`
+/// after `commands`.
+pub(crate) fn snapshot_after(
+    commands: Vec<Command>,
+    want: impl Fn(&Snapshot) -> bool,
+) -> Arc<Snapshot> {
+    let mut h = coarse_cornell_thread();
+    for c in commands {
+        h.send(c).expect("queue");
+    }
+    let s = wait_for(&mut h, want);
     assert!(h.shutdown(Duration::from_secs(30)));
     s
 }
