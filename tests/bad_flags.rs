@@ -318,8 +318,8 @@ fn the_solver_refuses_power_that_would_overflow_and_keeps_its_state() {
         .expect("large but finite power");
     solver.run(
         &StopCriteria {
-            unshot: 1e-3,
-            max_shots: Some(10_000),
+            residual: 1e-3,
+            max_steps: Some(10_000),
             max_seconds: Some(60.0),
             tolerance: None,
         },

@@ -499,11 +499,14 @@ fn cornell_with(
     let config = SolverConfig {
         element_size: Some(element),
         patch_size: Some(patch),
-        method,
-        formfactor: FormFactorParams {
+        formfactor: nusselt_core::solver::FormFactorConfig {
+            method,
+            params: FormFactorParams {
             rays: 20_000,
             hemicube_res: 128,
             seed,
+            ..Default::default()
+        },
             ..Default::default()
         },
         ..Default::default()
@@ -511,7 +514,7 @@ fn cornell_with(
     let mut s = ProgressiveSolver::new(scene, config).expect("solver");
     let t = std::time::Instant::now();
     let stop = StopCriteria {
-        unshot: 1e-3,
+        residual: 1e-3,
         ..Default::default()
     };
     s.run(&stop, &AtomicBool::new(false), &mut |_| {});
@@ -529,7 +532,7 @@ fn cornell_with(
 /// the walls, would otherwise dilute every difference in the reflected light).
 fn rel_rms(a: &ProgressiveSolver, b: &ProgressiveSolver) -> f64 {
     let (mut num, mut den) = (0.0, 0.0);
-    let (ra, rb) = (a.element_radiance(false), b.element_radiance(false));
+    let (ra, rb) = (a.radiosity().to_vec(), b.radiosity().to_vec());
     let (scene, mesh) = (a.scene(), a.mesh());
     for ((x, y), e) in ra.iter().zip(&rb).zip(&mesh.elements) {
         let material = mesh.patches[e.patch.0 as usize].material;
@@ -715,17 +718,20 @@ fn hybrid_counts_hemicube_receivers_like_its_element_rule() {
         let config = SolverConfig {
             element_size: Some(30.0),
             patch_size: Some(60.0),
-            formfactor: FormFactorParams {
+            formfactor: nusselt_core::solver::FormFactorConfig {
+                params: FormFactorParams {
                 hybrid_k: k,
                 hybrid_min_pixels: min_pixels,
                 hemicube_res: res,
+                ..Default::default()
+            },
                 ..Default::default()
             },
             ..Default::default()
         };
         let solver = ProgressiveSolver::new(scene, config).expect("solver");
         let mesh = solver.mesh();
-        let params = solver.config().formfactor.clone();
+        let params = solver.config().formfactor.params.clone();
         let ctx = solver.row_context();
         let omega = DeltaTable::pixel_solid_angle_at(res);
         let mut below = 0;

@@ -14,7 +14,7 @@ use nusselt_core::formfactor::hemicube::{
 use nusselt_core::formfactor::{FormFactorMethod, FormFactorParams};
 use nusselt_core::mesh::PatchId;
 use nusselt_core::scene::{LoadOptions, Scene};
-use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+use nusselt_core::solver::{FormFactorConfig, ProgressiveSolver, SolverConfig, StopCriteria};
 use nusselt_gpu::GpuHemicube;
 
 mod common;
@@ -47,12 +47,14 @@ fn cornell_config(
     SolverConfig {
         element_size: Some(40.0),
         patch_size: Some(80.0),
-        method,
-        formfactor: FormFactorParams {
-            hemicube_res: 128,
-            ..Default::default()
+        formfactor: FormFactorConfig {
+            method,
+            params: FormFactorParams {
+                hemicube_res: 128,
+                ..Default::default()
+            },
+            raster,
         },
-        raster,
         ..Default::default()
     }
 }
@@ -71,7 +73,7 @@ fn gpu_item_buffer_matches_the_cpu_hemicube() {
         ProgressiveSolver::new(cornell(), cornell_config(FormFactorMethod::Hemicube, None))
             .expect("solver");
     let mesh = solver.mesh();
-    let params = solver.config().formfactor.clone();
+    let params = solver.config().formfactor.params.clone();
     let ctx = solver.row_context();
     let table = DeltaTable::new(params.hemicube_res);
     let never = AtomicBool::new(false);
@@ -195,7 +197,7 @@ fn gpu_hemicube_solves_the_cornell_box_like_the_cpu_hemicube() {
     let Some(gpu) = gpu() else { return };
     let raster: Arc<dyn ItemBufferRaster> = Arc::new(gpu);
     let stop = StopCriteria {
-        unshot: 1e-3,
+        residual: 1e-3,
         ..Default::default()
     };
     let never = AtomicBool::new(false);

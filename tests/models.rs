@@ -98,7 +98,7 @@ fn assert_power(s: &ProgressiveSolver, closed: bool) {
 }
 
 fn image_of(s: &ProgressiveSolver, camera: Camera, width: u32, height: u32, spp: u32) -> Image {
-    let vertex = s.mesh().vertex_values(&s.element_radiance(true));
+    let vertex = s.mesh().vertex_values(&s.display_radiance());
     let bvh = render::display_bvh(s.scene(), s.mesh());
     let view = SolutionView {
         scene: s.scene(),
@@ -680,11 +680,11 @@ proptest! {
             return Ok(());
         };
         s.run(
-            &StopCriteria { unshot: 0.0, max_shots: Some(20), max_seconds: None, tolerance: None },
+            &StopCriteria { residual: 0.0, max_steps: Some(20), max_seconds: None, tolerance: None },
             &AtomicBool::new(false),
             &mut |_| {},
         );
-        for b in s.element_radiance(true) {
+        for b in s.display_radiance() {
             prop_assert!(b.is_finite() && b.min_element() >= 0.0, "radiance {}", b);
         }
         let camera = nusselt_core::render::view::default_camera(s.scene());

@@ -147,7 +147,7 @@ fn gauss_seidel_over_the_thread_converges_to_the_shooting_answer() {
     let mut direct = ProgressiveSolver::new(cornell(), coarse_config()).expect("solver");
     direct.run(
         &StopCriteria {
-            unshot: stop,
+            residual: stop,
             ..Default::default()
         },
         &AtomicBool::new(false),
@@ -156,7 +156,7 @@ fn gauss_seidel_over_the_thread_converges_to_the_shooting_answer() {
     assert_eq!(direct.mesh().elements.len(), done.geometry.elements);
     let want = done
         .geometry
-        .expand(&direct.mesh().vertex_values(&direct.element_radiance(false)));
+        .expand(&direct.mesh().vertex_values(&direct.radiosity().to_vec()));
     let rel = rel_l2(&done.radiance, &want, &done.geometry);
     let rho_max = done
         .materials
@@ -317,7 +317,7 @@ fn multilevel_over_the_thread_matches_a_direct_run(kind: SolverKind) {
     nusselt_core::solver::run_solver(
         direct.as_mut(),
         &StopCriteria {
-            unshot: stop,
+            residual: stop,
             ..Default::default()
         },
         &AtomicBool::new(false),
@@ -328,7 +328,7 @@ fn multilevel_over_the_thread_matches_a_direct_run(kind: SolverKind) {
         &direct
             .problem()
             .mesh
-            .vertex_values(&direct.element_radiance(false)),
+            .vertex_values(&direct.radiosity().to_vec()),
     );
     let rel = rel_l2(&done.radiance, &want, &done.geometry);
     assert!(rel < 1e-5, "thread and direct run differ by {rel}");

@@ -38,15 +38,15 @@ pub fn solve_and_render(scene: Scene) {
     };
     s.run(
         &StopCriteria {
-            unshot: 0.0,
-            max_shots: Some(3),
+            residual: 0.0,
+            max_steps: Some(3),
             max_seconds: None,
             tolerance: None,
         },
         &AtomicBool::new(false),
         &mut |_| {},
     );
-    let radiance = s.element_radiance(true);
+    let radiance = s.display_radiance();
     assert!(radiance.iter().all(|b| b.is_finite() && b.min_element() >= 0.0));
     let vertex = s.mesh().vertex_values(&radiance);
     let bvh = render::display_bvh(s.scene(), s.mesh());

@@ -142,8 +142,8 @@ fn cube_reference(rho: f64) -> Result<[f64; 6]> {
     };
     let mut s = SolverKind::Cg.build(Problem::new(builtin("cube", Some(rho))?, config)?)?;
     let stop = StopCriteria {
-        unshot: 1e-10,
-        max_shots: None,
+        residual: 1e-10,
+        max_steps: None,
         max_seconds: Some(600.0),
         tolerance: None,
     };
@@ -229,7 +229,10 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         let mut case_series = Vec::new();
         for (label, kind, overshoot) in SOLVERS {
             let config = SolverConfig {
-                overshoot,
+                shooting: nusselt_core::solver::ShootingOptions {
+                    overshoot,
+                    ..Default::default()
+                },
                 ..Default::default()
             };
             reset_peak();
@@ -245,8 +248,8 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             let setup = start.elapsed().as_secs_f64();
             let (mut to_1, mut to_01) = (None, None);
             let stop = StopCriteria {
-                unshot: 1e-6,
-                max_shots: None,
+                residual: 1e-6,
+                max_steps: None,
                 max_seconds: Some(args.seconds),
                 tolerance: None,
             };
@@ -262,7 +265,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             run_solver(solver.as_mut(), &stop, &never, &mut |r, s| {
                 let t = setup + r.seconds;
                 let err = error(&case.truth, s);
-                if r.residual <= 0.8 * logged || r.residual <= stop.unshot {
+                if r.residual <= 0.8 * logged || r.residual <= stop.residual {
                     points.push((t, err.unwrap_or(r.residual)));
                 }
                 // The time from which the error stays below 1 % (0.1 %): a later step
@@ -394,7 +397,7 @@ fn live_edits(out: &std::path::Path) -> Result<()> {
     let mut s = ProgressiveSolver::new(scene.clone(), SolverConfig::default())?;
     let never = AtomicBool::new(false);
     let converge = StopCriteria {
-        unshot: 1e-4,
+        residual: 1e-4,
         ..Default::default()
     };
     s.run(&converge, &never, &mut |_| {});
@@ -428,7 +431,7 @@ fn live_edits(out: &std::path::Path) -> Result<()> {
         let shots0 = s.shots();
         let start = Instant::now();
         let stop = StopCriteria {
-            unshot: 0.01 * edit,
+            residual: 0.01 * edit,
             ..Default::default()
         };
         s.run(&stop, &never, &mut |_| {});

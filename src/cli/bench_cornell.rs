@@ -53,7 +53,7 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
             next: 16,
         };
         let stop = StopCriteria {
-            unshot: 1e-4,
+            residual: 1e-4,
             // The clock here includes the benchmark's renders (about 0.3 s each, at
             // log-spaced steps), which the recorded times leave out.
             max_seconds: Some(3.0 * seconds),
@@ -62,11 +62,11 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
         let mut points = Vec::new();
         let elements = s.problem().mesh.elements.len();
         run_solver(s.as_mut(), &stop, &never, &mut |r, s| {
-            if rec.due(r.step) || r.residual <= stop.unshot {
+            if rec.due(r.step) || r.residual <= stop.residual {
                 let t0 = Instant::now();
                 let e = rec.error(&render_elements(
                     s.problem(),
-                    &s.element_radiance(true),
+                    &s.display_radiance(),
                     &bvh,
                     16,
                 ));
@@ -99,7 +99,7 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
         let start = Instant::now();
         let mut s = super::bench_images::meshed(&scene, config, adaptive)?;
         let stop = StopCriteria {
-            unshot: 1e-4,
+            residual: 1e-4,
             // The finest meshes need longer than one solver's share.
             max_seconds: Some(4.0 * seconds),
             ..Default::default()
@@ -108,7 +108,7 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
         let solved = start.elapsed().as_secs_f64();
         let bvh = render::display_bvh(&scene, &s.problem().mesh);
         let e = render::relative_rms(
-            &render_elements(s.problem(), &s.element_radiance(true), &bvh, 16),
+            &render_elements(s.problem(), &s.display_radiance(), &bvh, 16),
             &reference,
             &mask,
         )?;
@@ -124,7 +124,7 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
             edge_spp: nusselt_core::render::DEFAULT_EDGE_SPP,
         };
         let direct =
-            render::direct::render_solution(s.problem(), &s.element_radiance(true), &settings);
+            render::direct::render_solution(s.problem(), &s.display_radiance(), &settings);
         let e_direct = render::relative_rms(&direct, &reference, &mask)?;
         let t_direct = solved + t_direct.elapsed().as_secs_f64();
         let n = s.problem().mesh.elements.len();
@@ -179,7 +179,10 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
     ] {
         let config = SolverConfig {
             max_elements: Some(5_000),
-            method,
+            formfactor: nusselt_core::solver::FormFactorConfig {
+                method,
+                ..Default::default()
+            },
             ..Default::default()
         };
         let (point, _) = run_to_end(format!("{method}"), config, None, "method")?;

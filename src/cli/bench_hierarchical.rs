@@ -68,20 +68,22 @@ pub fn cornell(out: &Path, reference_path: &Path) -> Result<()> {
     for (kind, tolerance) in runs {
         reset_peak();
         let config = SolverConfig {
-            link_tolerance: tolerance.unwrap_or(nusselt_core::solver::DEFAULT_LINK_TOLERANCE),
+            hierarchical: nusselt_core::solver::HierarchicalOptions {
+                link_tolerance: tolerance.unwrap_or(nusselt_core::solver::DEFAULT_LINK_TOLERANCE),
+            },
             ..SolverConfig::default()
         };
         let start = Instant::now();
         let mut s = kind.build(Problem::new(scene.clone(), config)?)?;
         let stop = StopCriteria {
-            unshot: 1e-4,
+            residual: 1e-4,
             ..Default::default()
         };
         run_solver(s.as_mut(), &stop, &never, &mut |_, _| {});
         let seconds = start.elapsed().as_secs_f64();
         let peak = peak_mb().unwrap_or(f64::NAN);
         let bvh = render::display_bvh(&scene, &s.problem().mesh);
-        let image = render_elements(s.problem(), &s.element_radiance(true), &bvh, 16);
+        let image = render_elements(s.problem(), &s.display_radiance(), &bvh, 16);
         let error = render::relative_rms(&image, &reference, &mask).unwrap_or(f64::NAN);
         let stored = s.matrix_bytes() as f64 / (1 << 20) as f64;
         let report = s.report().replace(',', ";");
@@ -163,7 +165,7 @@ pub fn large(out: &Path, cornell_reference: &Path, gallery_reference: &Path) -> 
             let start = Instant::now();
             let mut s = kind.build(Problem::new(scene.clone(), config)?)?;
             let stop = StopCriteria {
-                unshot: 1e-4,
+                residual: 1e-4,
                 max_seconds: Some(LARGE_SECONDS),
                 ..Default::default()
             };
@@ -175,7 +177,7 @@ pub fn large(out: &Path, cornell_reference: &Path, gallery_reference: &Path) -> 
             });
             let seconds = start.elapsed().as_secs_f64();
             let peak = peak_mb().unwrap_or(f64::NAN);
-            let radiance = s.element_radiance(true);
+            let radiance = s.display_radiance();
             let (steps, residual, name) = (s.steps(), s.residual(), s.name());
             let (report, stored) = (s.report().replace(',', ";"), s.matrix_bytes());
             let (problem, rows) = s.into_parts();

@@ -112,7 +112,7 @@ pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
     let mut reference_solver = ProgressiveSolver::new(scene.clone(), SolverConfig::default())?;
     let never = AtomicBool::new(false);
     let converge = StopCriteria {
-        unshot: 1e-6,
+        residual: 1e-6,
         ..Default::default()
     };
     reference_solver.run(&converge, &never, &mut |_| {});
@@ -137,7 +137,7 @@ pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
         next: 1,
     };
     let stop = StopCriteria {
-        unshot: 1e-4,
+        residual: 1e-4,
         max_seconds: Some(seconds),
         ..Default::default()
     };
@@ -145,7 +145,7 @@ pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
     let run_start = Instant::now();
     loop {
         let shots = shooting.shots();
-        if rec.due(shots) || shooting.unshot_fraction() <= stop.unshot {
+        if rec.due(shots) || shooting.unshot_fraction() <= stop.residual {
             let t0 = Instant::now();
             let t = setup + run_start.elapsed().as_secs_f64() - rec.paused;
             let unshot = shooting.unshot_fraction();
@@ -157,13 +157,13 @@ pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
             ));
             let none = rec.error(&render_elements(
                 shooting.problem(),
-                &shooting.element_radiance(false),
+                &shooting.radiosity().to_vec(),
                 &bvh,
                 4,
             ));
             let regional = rec.error(&render_elements(
                 shooting.problem(),
-                &shooting.element_radiance(true),
+                &shooting.display_radiance(),
                 &bvh,
                 4,
             ));
@@ -176,7 +176,7 @@ pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
             }
             rec.paused += t0.elapsed().as_secs_f64();
         }
-        if shooting.unshot_fraction() <= stop.unshot
+        if shooting.unshot_fraction() <= stop.residual
             || run_start.elapsed().as_secs_f64() - rec.paused > seconds
             || shooting.shoot(&never).is_none()
         {
@@ -196,17 +196,17 @@ pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
         next: 1,
     };
     let gs_stop = StopCriteria {
-        unshot: 1e-4,
+        residual: 1e-4,
         max_seconds: Some(seconds),
         ..Default::default()
     };
     let mut gs_rows = Vec::new();
     run_solver(gs.as_mut(), &gs_stop, &never, &mut |r, s| {
-        if rec.due(r.step) || r.residual <= gs_stop.unshot {
+        if rec.due(r.step) || r.residual <= gs_stop.residual {
             let t0 = Instant::now();
             let e = rec.error(&render_elements(
                 s.problem(),
-                &s.element_radiance(true),
+                &s.display_radiance(),
                 &bvh,
                 4,
             ));

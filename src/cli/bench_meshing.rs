@@ -53,7 +53,7 @@ pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
         let mut s = super::bench_images::meshed(&scene, config, adaptive)?;
         run_solver(s.as_mut(), &StopCriteria::default(), &never, &mut |_, _| {});
         let solved = start.elapsed().as_secs_f64();
-        let radiance = s.element_radiance(true);
+        let radiance = s.display_radiance();
         let bvh = render::display_bvh(&scene, &s.problem().mesh);
         let image = render_elements(s.problem(), &radiance, &bvh, settings.spp);
         let vertex = (

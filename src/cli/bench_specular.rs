@@ -146,7 +146,7 @@ fn hybrid_rows(
         SolverKind::Shooting.build(Problem::new(scene.clone(), SolverConfig::default())?)?;
     solve_to(solver.as_mut(), 1e-4);
     let solved = start.elapsed().as_secs_f64();
-    let radiance = solver.element_radiance(true);
+    let radiance = solver.display_radiance();
     let problem = solver.problem();
     let mut rows = Vec::new();
     for pass in render::Pass::ALL {

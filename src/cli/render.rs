@@ -14,7 +14,10 @@ use super::pass::{parse_pass, render_chosen};
 use super::{MAX_RAYS, MAX_VIS_RAYS, SceneArgs, ViewArgs, check_count, check_output};
 use nusselt_core::formfactor::FormFactorParams;
 use nusselt_core::render::{self, Image};
-use nusselt_core::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
+use nusselt_core::solver::{
+    FormFactorConfig, HierarchicalOptions, Problem, ShootingOptions, SolverConfig, SolverKind,
+    StopCriteria, run_solver,
+};
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
@@ -258,7 +261,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         name => Some(SolverKind::parse(name, args.omega).ok_or_else(|| {
             anyhow::anyhow!(
                 "unknown --solver '{name}' (expected auto or one of: {})",
-                SolverKind::NAMES.join(", ")
+                SolverKind::names_joined()
             )
         })?),
     };
@@ -316,26 +319,32 @@ fn render(args: &RenderArgs) -> Result<()> {
     };
     let config = SolverConfig {
         element_size: args.element_size.or(file_mesh.element_size),
-        method,
-        formfactor: FormFactorParams {
+        patch_size,
+        max_elements,
+        memory_bytes: max_memory_bytes(args.max_memory)?,
+        discontinuity: args.discontinuity || file_mesh.discontinuity,
+        formfactor: FormFactorConfig {
+            method,
+            params: FormFactorParams {
             visibility_rays: args.vis_rays,
             probe_visibility: !args.full_visibility,
             seed: args.seed,
             rays: args.rays,
             ..args.method_args.params()
         },
-        patch_size,
-        max_elements,
-        overshoot: !args.no_overshoot,
-        regional_ambient,
-        link_tolerance: args
+            raster: raster_for(method)?,
+        },
+        shooting: ShootingOptions {
+            overshoot: !args.no_overshoot,
+            regional_ambient,
+        },
+        hierarchical: HierarchicalOptions {
+            link_tolerance: args
             .link_tolerance
             .unwrap_or(nusselt_core::solver::DEFAULT_LINK_TOLERANCE),
-        memory_bytes: max_memory_bytes(args.max_memory)?,
-        raster: raster_for(method)?,
-        discontinuity: args.discontinuity || file_mesh.discontinuity,
+        },
     };
-    let adapter = config.raster.as_ref().map(|r| r.describe());
+    let adapter = config.formfactor.raster.as_ref().map(|r| r.describe());
     let solve_start = Instant::now();
     let problem = Problem::new(scene, config)?;
     let run = nusselt_core::solver::auto::RunShape {
@@ -400,8 +409,8 @@ fn render(args: &RenderArgs) -> Result<()> {
         );
     }
     let stop = StopCriteria {
-        unshot,
-        max_shots: args.shots,
+        residual: unshot,
+        max_steps: args.shots,
         max_seconds: args
             .seconds
             .map(|s| solve_seconds_within(s, process_start.elapsed().as_secs_f64())),
@@ -431,13 +440,13 @@ fn render(args: &RenderArgs) -> Result<()> {
                 r.step,
                 r.seconds,
                 r.residual,
-                s.ambient_mean()
+                nusselt_core::solver::ambient_mean(s)
             )
         {
             log_error.get_or_insert(e);
         }
         // Progress on a log scale from the start to the target.
-        let target = stop.unshot.max(1e-12);
+        let target = stop.residual.max(1e-12);
         let frac =
             ((initial / r.residual.max(1e-300)).ln() / (initial / target).ln()).clamp(0.0, 1.0);
         pb.set_position((frac * 1000.0) as u64);
@@ -454,7 +463,11 @@ fn render(args: &RenderArgs) -> Result<()> {
 
     // What the summary needs from the solver, then the solver's working memory (links,
     // rows, hierarchy) goes before the render builds its own.
-    let radiance = solver.element_radiance(!args.no_ambient);
+    let radiance = if args.no_ambient {
+        solver.radiosity().to_vec()
+    } else {
+        solver.display_radiance()
+    };
     let (steps, residual, name) = (solver.steps(), solver.residual(), solver.name());
     let (report, matrix_bytes) = (solver.report(), solver.matrix_bytes());
     let setup_total: f64 = solver.problem().setup_seconds.iter().map(|(_, v)| v).sum();

@@ -180,7 +180,7 @@ fn parse_solver(name: &str, omega: Option<f64>) -> Result<SolverKind> {
     let kind = SolverKind::parse(name, omega).with_context(|| {
         format!(
             "unknown --solver '{name}' (expected auto or one of: {})",
-            SolverKind::NAMES.join(", ")
+            SolverKind::names_joined()
         )
     })?;
     if let Some(w) = omega {

@@ -70,7 +70,7 @@ fn solve(c: &mut Criterion) {
             let mut out = vec![0f32; solver.mesh().elements.len()];
             let ctx = solver.row_context();
             nusselt_core::formfactor::compute_row(
-                solver.config().method,
+                solver.config().formfactor.method,
                 &ctx,
                 light,
                 &mut out,
@@ -88,7 +88,7 @@ fn solve(c: &mut Criterion) {
             };
             let mut s = ProgressiveSolver::new(cornell(), config).expect("solver");
             let stop = StopCriteria {
-                unshot: 1e-3,
+                residual: 1e-3,
                 ..Default::default()
             };
             s.run(&stop, &AtomicBool::new(false), &mut |_| {});
@@ -136,8 +136,8 @@ fn steps(c: &mut Criterion) {
     // Shooting: 2,000 shots first, so that the rows of the patches that shoot are cached.
     let mut shooting = ProgressiveSolver::new(cornell(), SolverConfig::default()).expect("solver");
     let warm = StopCriteria {
-        unshot: 0.0,
-        max_shots: Some(2_000),
+        residual: 0.0,
+        max_steps: Some(2_000),
         ..Default::default()
     };
     shooting.run(&warm, &never, &mut |_| {});
@@ -156,8 +156,8 @@ fn steps(c: &mut Criterion) {
         .build(problem)
         .expect("gauss-seidel");
     let rows = StopCriteria {
-        unshot: 0.0,
-        max_shots: Some(gs.problem().mesh.patches.len()),
+        residual: 0.0,
+        max_steps: Some(gs.problem().mesh.patches.len()),
         ..Default::default()
     };
     run_solver(gs.as_mut(), &rows, &never, &mut |_, _| {});

@@ -28,12 +28,12 @@
 //! let coarse = scene.bounds().diagonal() / 20.0; // the default is 1/80
 //! let config = SolverConfig { element_size: Some(coarse), ..Default::default() };
 //! let mut solver = ProgressiveSolver::new(scene, config)?;
-//! let stop = StopCriteria { unshot: 0.0, max_shots: Some(30), max_seconds: None, tolerance: None };
+//! let stop = StopCriteria { residual: 0.0, max_steps: Some(30), max_seconds: None, tolerance: None };
 //! solver.run(&stop, &AtomicBool::new(false), &mut |_shot| {});
 //! assert_eq!(solver.shots(), 30);
 //!
 //! // Radiance per display vertex (ambient term included), then ray-cast pixels.
-//! let vertex = solver.mesh().vertex_values(&solver.element_radiance(true));
+//! let vertex = solver.mesh().vertex_values(&solver.display_radiance());
 //! let bvh = render::display_bvh(solver.scene(), solver.mesh());
 //! let view = SolutionView {
 //!     scene: solver.scene(),

@@ -76,13 +76,13 @@ fn the_unlit_room_is_not_shown_lit_by_light_that_cannot_reach_it() {
     let mut s = ProgressiveSolver::new(scene, config).expect("solver");
     let never = AtomicBool::new(false);
     let mid = StopCriteria {
-        unshot: 0.6,
+        residual: 0.6,
         ..Default::default()
     };
     s.run(&mid, &never, &mut |_| {});
     let unshot = s.unshot_fraction();
-    let regional = right_room_mean(&s, &s.element_radiance(true));
-    let plain = right_room_mean(&s, &s.element_radiance(false));
+    let regional = right_room_mean(&s, &s.display_radiance());
+    let plain = right_room_mean(&s, &s.radiosity().to_vec());
     let global: Vec<Rgb> = {
         let a = s.ambient();
         let rho = s.problem().element_reflectance();
@@ -94,7 +94,7 @@ fn the_unlit_room_is_not_shown_lit_by_light_that_cannot_reach_it() {
     };
     let global = right_room_mean(&s, &global);
     let end = StopCriteria {
-        unshot: 1e-5,
+        residual: 1e-5,
         ..Default::default()
     };
     s.run(&end, &never, &mut |_| {});

@@ -53,7 +53,7 @@ fn pixels_at(s: &ProgressiveSolver, x: f64, z: f64) -> Vec<f64> {
     };
     let image = nusselt_core::render::direct::render_solution(
         s.problem(),
-        &s.element_radiance(false),
+        &s.radiosity().to_vec(),
         &settings,
     );
     image.pixels.iter().map(|p| p.x).collect()
@@ -75,7 +75,7 @@ fn solved() -> ProgressiveSolver {
     };
     let mut s = ProgressiveSolver::new(scene, config).expect("solver");
     let stop = StopCriteria {
-        unshot: 1e-9,
+        residual: 1e-9,
         ..Default::default()
     };
     s.run(&stop, &AtomicBool::new(false), &mut |_| {});
@@ -123,7 +123,7 @@ fn pixels_of_a_penumbra_match_the_mean_of_the_closed_form() {
     };
     let image = nusselt_core::render::direct::render_solution(
         s.problem(),
-        &s.element_radiance(false),
+        &s.radiosity().to_vec(),
         &settings,
     );
     let floor = |sx: f64, sy: f64| {

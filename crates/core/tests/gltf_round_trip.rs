@@ -13,11 +13,11 @@ use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 fn solve_means(scene: Scene) -> HashMap<String, Rgb> {
     let mut solver = ProgressiveSolver::new(scene, SolverConfig::default()).expect("solver");
     let stop = StopCriteria {
-        unshot: 1e-3,
+        residual: 1e-3,
         ..Default::default()
     };
     solver.run(&stop, &AtomicBool::new(false), &mut |_| {});
-    let radiance = solver.element_radiance(false);
+    let radiance = solver.radiosity().to_vec();
     let mesh = solver.mesh();
     let mut sums: HashMap<String, (Rgb, f64)> = HashMap::new();
     for (e, b) in mesh.elements.iter().zip(&radiance) {
@@ -48,13 +48,13 @@ fn the_cornell_box_round_trips_through_gltf() {
     let mut solver = ProgressiveSolver::new(scene.clone(), coarse).expect("solver");
     solver.run(
         &StopCriteria {
-            unshot: 1e-3,
+            residual: 1e-3,
             ..Default::default()
         },
         &AtomicBool::new(false),
         &mut |_| {},
     );
-    let baked = BakedMesh::from_solution(solver.problem(), &solver.element_radiance(false));
+    let baked = BakedMesh::from_solution(solver.problem(), &solver.radiosity().to_vec());
     let input = GltfInput {
         mesh: &baked,
         materials: &scene.materials,

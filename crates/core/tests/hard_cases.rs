@@ -148,7 +148,7 @@ fn contact_solve_with(file: &str, scale: f64, patch: f64) -> ProgressiveSolver {
 /// `gap` are given at scale 1).
 fn dark_under_boxes(s: &ProgressiveSolver, gap: f64, scale: f64) -> Result<(), String> {
     let name = &s.scene().name;
-    let radiance = s.element_radiance(false);
+    let radiance = s.radiosity().to_vec();
     let l_max = s
         .mesh()
         .elements
@@ -287,8 +287,8 @@ fn gaps_under_boxes_are_dark_when_patches_follow_the_footprints() {
 fn contact_and_a_gap_of_1e_6_agree_on_every_visible_surface() {
     let a = contact_solve("contact_0.obj", 1.0);
     let b = contact_solve("contact_1e-6.obj", 1.0);
-    let ra = a.element_radiance(true);
-    let rb = b.element_radiance(true);
+    let ra = a.display_radiance();
+    let rb = b.display_radiance();
     let outside_floor = |s: &ProgressiveSolver, j: usize| {
         let c = s.mesh().elements[j].centroid;
         material_name(s, j) == "floor" && depth_inside(c.x, c.z).is_none()
@@ -336,13 +336,13 @@ fn contact_and_a_gap_of_1e_6_agree_on_every_visible_surface() {
 #[test]
 fn contact_scene_radiance_is_the_same_at_scale_1e_3_and_1e4() {
     let one = contact_solve("contact_0.obj", 1.0);
-    let reference = one.element_radiance(false);
+    let reference = one.radiosity().to_vec();
     for (file, scale) in [
         ("contact_0_scale_1e-3.obj", 1e-3),
         ("contact_0_scale_1e4.obj", 1e4),
     ] {
         let s = contact_solve(file, scale);
-        let r = s.element_radiance(false);
+        let r = s.radiosity().to_vec();
         assert_eq!(
             r.len(),
             reference.len(),
@@ -389,7 +389,7 @@ fn coincident_and_overlapping_coplanar_faces_count_once() {
     };
     let reference = solve("coplanar_ref.obj");
     assert_closed_balance(&reference);
-    let rr = reference.element_radiance(true);
+    let rr = reference.display_radiance();
     for file in ["coplanar_dup.obj", "coplanar_overlap.obj"] {
         let s = solve(file);
         let (_, floor_area) = mean_over(&s, s.incident(), |j| material_name(&s, j) == "floor");
@@ -398,7 +398,7 @@ fn coincident_and_overlapping_coplanar_faces_count_once() {
             "{file}: the floor is meshed into {floor_area} m² of elements, the room's floor is 1 m²"
         );
         assert_closed_balance(&s);
-        let r = s.element_radiance(true);
+        let r = s.display_radiance();
         for m in ["floor", "wall", "ceiling"] {
             let (a, _) = mean_over(&s, &r, |j| material_name(&s, j) == m);
             let (b, _) = mean_over(&reference, &rr, |j| material_name(&reference, j) == m);
@@ -570,7 +570,7 @@ fn tiny_and_huge_lights_of_equal_power_give_equal_total_radiosity() {
         converge(&mut s, 1e-3);
         assert_sane(&s);
         assert_closed_balance(&s);
-        let r = s.element_radiance(true);
+        let r = s.display_radiance();
         let total: DVec3 = r
             .iter()
             .zip(&s.mesh().elements)
@@ -764,14 +764,14 @@ fn a_huge_scale_glb_meshes_and_shoots() {
     let mut s = nusselt_core::solver::ProgressiveSolver::new(scene, config).expect("meshes");
     s.run(
         &nusselt_core::solver::StopCriteria {
-            unshot: 0.0,
-            max_shots: Some(3),
+            residual: 0.0,
+            max_steps: Some(3),
             ..Default::default()
         },
         &std::sync::atomic::AtomicBool::new(false),
         &mut |_| {},
     );
-    let radiance = s.element_radiance(true);
+    let radiance = s.display_radiance();
     assert!(
         radiance
             .iter()

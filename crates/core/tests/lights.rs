@@ -40,8 +40,8 @@ fn solver(scene: Scene, size: f64) -> ProgressiveSolver {
 
 fn converge(s: &mut ProgressiveSolver) {
     let stop = StopCriteria {
-        unshot: 1e-9,
-        max_shots: Some(100_000),
+        residual: 1e-9,
+        max_steps: Some(100_000),
         ..Default::default()
     };
     s.run(&stop, &AtomicBool::new(false), &mut |_| {});
@@ -75,7 +75,7 @@ fn a_point_light_over_a_floor_gives_i_cos_over_r_squared() {
     });
     let mut s = solver(scene, h / 8.0);
     converge(&mut s);
-    let b = s.element_radiance(false);
+    let b = s.radiosity().to_vec();
     for (e, b) in s.mesh().elements.iter().zip(&b) {
         let c = e.corners();
         let (xs, zs): (Vec<f64>, Vec<f64>) = c.iter().map(|p| (p.x, p.z)).unzip();
@@ -103,7 +103,7 @@ fn a_sun_gives_e_cos_theta_and_a_hard_shadow() {
     });
     let mut s = solver(scene, 0.25);
     converge(&mut s);
-    for b in s.element_radiance(false) {
+    for b in s.radiosity().to_vec() {
         let exact = DVec3::new(3.0, 2.0, 1.0) * (RHO * dir.y / PI);
         assert!((b - exact).abs().max_element() < 1e-12, "{b} vs {exact}");
     }
@@ -115,7 +115,7 @@ fn a_sun_gives_e_cos_theta_and_a_hard_shadow() {
         angular_radius: 0.0,
     });
     let s = solver(scene, 0.25);
-    assert!(s.element_radiance(false).iter().all(|b| *b == DVec3::ZERO));
+    assert!(s.radiosity().to_vec().iter().all(|b| *b == DVec3::ZERO));
 }
 
 #[test]
@@ -127,7 +127,7 @@ fn a_sky_over_an_open_floor_gives_pi_l_and_nothing_in_a_closed_box() {
     let mut s = solver(scene, 0.25);
     converge(&mut s);
     // H = π L on an unoccluded plane facing up: B = ρ H / π = ρ L, every ray escapes.
-    for b in s.element_radiance(false) {
+    for b in s.radiosity().to_vec() {
         assert!(
             (b - DVec3::splat(RHO * 2.0)).abs().max_element() < 1e-12,
             "{b}"
@@ -150,7 +150,7 @@ fn a_sky_over_an_open_floor_gives_pi_l_and_nothing_in_a_closed_box() {
     assert!(b.problem().external.sky_fraction.iter().all(|f| *f == 0.0));
     converge(&mut a);
     converge(&mut b);
-    assert_eq!(a.element_radiance(false), b.element_radiance(false));
+    assert_eq!(a.radiosity().to_vec(), b.radiosity().to_vec());
 }
 
 #[test]
@@ -213,8 +213,8 @@ fn a_light_edit_converges_to_a_fresh_solve() {
     let mut fresh = ProgressiveSolver::new(make(4e5), config).expect("solver");
     converge(&mut fresh);
     let (a, b) = (
-        edited.element_radiance(false),
-        fresh.element_radiance(false),
+        edited.radiosity().to_vec(),
+        fresh.radiosity().to_vec(),
     );
     for (a, b) in a.iter().zip(&b) {
         assert!(
@@ -317,7 +317,7 @@ fn sky_and_sun_agree_with_the_path_tracer() {
     converge(&mut s);
     let image = nusselt_core::render::Pass::Direct.render(
         s.problem(),
-        &s.element_radiance(false),
+        &s.radiosity().to_vec(),
         &nusselt_core::render::RenderSettings { spp: 4, ..settings },
         16,
     );

@@ -4,7 +4,9 @@ use std::sync::atomic::AtomicBool;
 
 use glam::DVec3;
 use nusselt_core::scene::{LoadOptions, Scene};
-use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+use nusselt_core::solver::{
+    FormFactorConfig, ProgressiveSolver, ShootingOptions, SolverConfig, StopCriteria,
+};
 
 fn furnace(rho: f64, size: f64) -> ProgressiveSolver {
     furnace_with(rho, size, false)
@@ -27,8 +29,10 @@ fn furnace_with(rho: f64, size: f64, overshoot: bool) -> ProgressiveSolver {
         SolverConfig {
             element_size: Some(size),
             patch_size: Some(0.5),
-            overshoot,
-            regional_ambient: false,
+            shooting: ShootingOptions {
+                overshoot,
+                regional_ambient: false,
+            },
             ..Default::default()
         },
     )
@@ -54,7 +58,7 @@ fn furnace_converges_to_e_over_one_minus_rho() {
             let elements = &s.mesh().elements;
             let area: f64 = elements.iter().map(|e| e.area).sum();
             let avg = s
-                .element_radiance(true)
+                .display_radiance()
                 .iter()
                 .zip(elements)
                 .map(|(b, e)| b.x * e.area)
@@ -67,19 +71,19 @@ fn furnace_converges_to_e_over_one_minus_rho() {
         };
         // Before any shot the ambient term alone gives the exact answer everywhere.
         assert!(
-            max_rel_error(&s.element_radiance(true), exact) < 1e-9,
+            max_rel_error(&s.display_radiance(), exact) < 1e-9,
             "rho {rho} at start"
         );
         check_average(&s, "at start");
         // About one shot per patch.
         let sweep = s.mesh().patches.len();
         let first_sweep = StopCriteria {
-            max_shots: Some(sweep),
+            max_steps: Some(sweep),
             ..Default::default()
         };
         s.run(&first_sweep, &never, &mut |_| {});
         check_average(&s, "after a sweep");
-        let early = max_rel_error(&s.element_radiance(true), exact);
+        let early = max_rel_error(&s.display_radiance(), exact);
         let raw = max_rel_error(s.radiosity(), exact);
         eprintln!(
             "rho {rho}: after {sweep} shots ambient-corrected error {early:.2e}, raw {raw:.2e}"
@@ -89,7 +93,7 @@ fn furnace_converges_to_e_over_one_minus_rho() {
             "the ambient term must bring the display closer"
         );
         let converge = StopCriteria {
-            unshot: 1e-4 * (1.0 - rho),
+            residual: 1e-4 * (1.0 - rho),
             ..Default::default()
         };
         s.run(&converge, &never, &mut |_| {});
@@ -124,7 +128,7 @@ fn partial_emission_box(mtl: &str) -> ProgressiveSolver {
     .expect("solver");
     s.run(
         &StopCriteria {
-            unshot: 1e-7,
+            residual: 1e-7,
             ..Default::default()
         },
         &AtomicBool::new(false),
@@ -177,8 +181,11 @@ fn cornell_solver(seed: u64) -> ProgressiveSolver {
     let config = SolverConfig {
         element_size: Some(60.0),
         patch_size: Some(120.0),
-        formfactor: nusselt_core::formfactor::FormFactorParams {
+        formfactor: FormFactorConfig {
+            params: nusselt_core::formfactor::FormFactorParams {
             seed,
+            ..Default::default()
+        },
             ..Default::default()
         },
         ..Default::default()
@@ -190,7 +197,7 @@ fn cornell_solver(seed: u64) -> ProgressiveSolver {
 fn a_solve_is_deterministic_for_a_seed() {
     let never = AtomicBool::new(false);
     let stop = StopCriteria {
-        max_shots: Some(40),
+        max_steps: Some(40),
         ..Default::default()
     };
     let mut a = cornell_solver(3);
@@ -223,13 +230,13 @@ fn a_cancelled_shot_changes_nothing() {
 fn an_edit_then_convergence_matches_a_fresh_solve() {
     let never = AtomicBool::new(false);
     let stop = StopCriteria {
-        unshot: 1e-6,
+        residual: 1e-6,
         ..Default::default()
     };
     let mut edited = cornell_solver(1);
     edited.run(
         &StopCriteria {
-            max_shots: Some(30),
+            max_steps: Some(30),
             ..Default::default()
         },
         &never,
@@ -332,8 +339,8 @@ fn overshooting_converges_the_furnace_in_far_fewer_sweeps() {
         let mut s = furnace_with(rho, 0.25, true);
         let patches = s.mesh().patches.len();
         let stop = StopCriteria {
-            unshot: 1e-4,
-            max_shots: Some(1000 * patches),
+            residual: 1e-4,
+            max_steps: Some(1000 * patches),
             ..Default::default()
         };
         s.run(&stop, &never, &mut |_| {});

@@ -6,6 +6,7 @@ use std::sync::atomic::AtomicBool;
 use nusselt_core::formfactor::FormFactorMethod;
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{
+    FormFactorConfig,
     Problem, Solver, SolverConfig, SolverError, SolverKind, StopCriteria, run_solver,
 };
 
@@ -33,8 +34,8 @@ fn furnace_meshed(rho: f64, element_size: Option<f64>, patch_size: Option<f64>) 
 
 fn solve(solver: &mut dyn Solver, residual: f64) {
     let stop = StopCriteria {
-        unshot: residual,
-        max_shots: Some(200_000),
+        residual,
+        max_steps: Some(200_000),
         max_seconds: None,
         tolerance: None,
     };
@@ -85,7 +86,10 @@ fn shooting_and_gauss_seidel_agree_per_element() {
     let config = SolverConfig {
         element_size: Some(100.0),
         patch_size: Some(200.0),
-        method: FormFactorMethod::Exact,
+        formfactor: FormFactorConfig {
+            method: FormFactorMethod::Exact,
+            ..Default::default()
+        },
         ..Default::default()
     };
     let mut answers = Vec::new();
@@ -144,7 +148,7 @@ fn switching_solvers_keeps_the_cached_rows() {
     let before: Vec<_> = shooting.radiosity().to_vec();
     let (problem, rows) = shooting.into_parts();
     let patches = problem.mesh.patches.len();
-    let cached = rows.bytes();
+    let cached = rows.as_ref().map_or(0, |r| r.bytes());
     assert_eq!(
         cached,
         patches * problem.mesh.elements.len() * 4,
@@ -207,8 +211,8 @@ fn the_tolerance_stop_leaves_every_element_within_it() {
     ] {
         let mut s = kind.build(problem()).expect("solver");
         let stop = StopCriteria {
-            unshot: 0.0,
-            max_shots: Some(1_000_000),
+            residual: 0.0,
+            max_steps: Some(1_000_000),
             max_seconds: None,
             tolerance: Some(tolerance),
         };
@@ -222,7 +226,7 @@ fn the_tolerance_stop_leaves_every_element_within_it() {
                 "{kind:?}: the tolerance did not stop it"
             );
         }
-        let shown = s.element_radiance(true);
+        let shown = s.display_radiance();
         let worst = shown
             .iter()
             .zip(&exact)

@@ -55,7 +55,7 @@ fn solve(scene: Scene) -> ProgressiveSolver {
     )
     .expect("solver");
     let stop = StopCriteria {
-        unshot: 1e-9,
+        residual: 1e-9,
         ..Default::default()
     };
     s.run(&stop, &AtomicBool::new(false), &mut |_| {});
@@ -79,8 +79,8 @@ fn a_textured_wall_bleeds_the_colour_of_its_mean() {
         &format!("newmtl wall\nKd {mean} 0 {mean}"),
     ));
     let (a, b) = (
-        textured.element_radiance(false),
-        flat.element_radiance(false),
+        textured.radiosity().to_vec(),
+        flat.radiosity().to_vec(),
     );
     assert_eq!(a.len(), b.len());
     let mut floor_red = 0.0;
@@ -122,7 +122,7 @@ fn the_image_shows_the_texel_under_the_computed_light() {
     };
     for pass in [Pass::Vertex, Pass::Direct, Pass::Gather] {
         let img = |s: &ProgressiveSolver| {
-            pass.render(s.problem(), &s.element_radiance(false), &settings, 16)
+            pass.render(s.problem(), &s.radiosity().to_vec(), &settings, 16)
         };
         let (t, f) = (img(&textured), img(&flat));
         let (mut white, mut black, mut sum_t, mut sum_f) = (0.0, 0.0f64, 0.0, 0.0);
@@ -188,8 +188,8 @@ fn a_closed_room_of_white_placeholders_converges() {
     .expect("solver");
     let patches = s.mesh().patches.len();
     let stop = StopCriteria {
-        unshot: 1e-4,
-        max_shots: Some(180 * patches),
+        residual: 1e-4,
+        max_steps: Some(180 * patches),
         ..Default::default()
     };
     s.run(&stop, &AtomicBool::new(false), &mut |_| {});
@@ -201,7 +201,7 @@ fn a_closed_room_of_white_placeholders_converges() {
     // Closed: Σ B A = Σ E A / (1 − ρ) = 20 over the 6 faces. Rows that miss a fraction ε of
     // the enclosure (the form factors' error, ≤ 1 % here) lower it to 1/(1 − ρ(1 − ε)): at
     // most 16 % below; nothing can raise it.
-    let b = s.element_radiance(true);
+    let b = s.display_radiance();
     let area: f64 = s.mesh().elements.iter().map(|e| e.area).sum();
     let mean: f64 = b
         .iter()
@@ -260,7 +260,7 @@ fn a_step_between_elements_shows_as_the_texture_has_it() {
     };
     for pass in [Pass::Vertex, Pass::Direct, Pass::Gather] {
         let img = |s: &ProgressiveSolver| {
-            pass.render(s.problem(), &s.element_radiance(false), &settings, 64)
+            pass.render(s.problem(), &s.radiosity().to_vec(), &settings, 64)
         };
         let (t, f) = (img(&textured), img(&flat));
         let mut worst = 0.0f64;
@@ -306,7 +306,7 @@ fn sheet_scene(dir: &Path, sheet_mtl: &str) -> Scene {
 
 /// Power reflected by the elements of material `name` (radiance × area, red channel).
 fn power(s: &ProgressiveSolver, name: &str) -> f64 {
-    let b = s.element_radiance(false);
+    let b = s.radiosity().to_vec();
     let scene = s.scene();
     s.mesh()
         .elements
@@ -392,7 +392,7 @@ fn the_holes_show_what_is_behind_the_sheet() {
         edge_spp: 0,
     };
     for pass in [Pass::Vertex, Pass::Direct, Pass::Gather] {
-        let img = pass.render(s.problem(), &s.element_radiance(false), &settings, 16);
+        let img = pass.render(s.problem(), &s.radiosity().to_vec(), &settings, 16);
         let lit = (0..64u32)
             .flat_map(|j| (0..64u32).map(move |i| (i, j)))
             .filter(|&(i, j)| img.get(i, j).x > 1e-6)

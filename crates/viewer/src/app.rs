@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use eframe::egui;
 
 use nusselt_core::scene::{LoadOptions, Scene};
-use nusselt_core::solver::SolverConfig;
+use nusselt_core::solver::{FormFactorConfig, SolverConfig};
 
 use super::UiOptions;
 use super::automation::{Automation, ScreenshotWhen, ShotState};
@@ -75,10 +75,13 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
             element_size: options.element_size,
             patch_size: options.patch_size,
             max_elements: options.max_elements,
-            method: options.method,
-            raster: options.raster.clone(),
             discontinuity: options.discontinuity,
             memory_bytes: options.memory_bytes,
+            formfactor: FormFactorConfig {
+                method: options.method,
+                raster: options.raster.clone(),
+                ..Default::default()
+            },
             ..Default::default()
         },
         kind: options.solver,

@@ -369,7 +369,7 @@ pub struct Snapshot {
     pub geometry: Arc<Geometry>,
     /// Radiance per drawn vertex, without the ambient term.
     pub radiance: Arc<Vec<[f32; 3]>>,
-    /// The display correction per drawn vertex (what `element_radiance(true)` adds to the
+    /// The display correction per drawn vertex (what `display_radiance()` adds to the
     /// radiosity: the ambient term times the reflectance), drawn when the toggle is on.
     pub correction: Arc<Vec<[f32; 3]>>,
     /// Reflectance per drawn vertex.

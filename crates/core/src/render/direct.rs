@@ -272,7 +272,7 @@ pub fn element_direct(ctx: &RowContext, method: FormFactorMethod) -> Vec<Rgb> {
 /// the per-pixel direct light to; per unit of texture where textured
 /// ([`super::per_unit_texture`]).
 pub fn indirect_vertex_radiance(problem: &crate::solver::Problem, radiance: &[Rgb]) -> Vec<Rgb> {
-    let direct = element_direct(&problem.row_context(), problem.config.method);
+    let direct = element_direct(&problem.row_context(), problem.config.formfactor.method);
     let rho = problem.element_reflectance();
     let punctual = &problem.external.punctual;
     let indirect: Vec<Rgb> = radiance

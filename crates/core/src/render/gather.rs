@@ -148,7 +148,7 @@ mod tests {
             seed: 3,
             edge_spp: 0,
         };
-        let radiance = solver.element_radiance(false);
+        let radiance = solver.radiosity().to_vec();
         let problem = solver.problem();
         let vertex = problem.mesh.vertex_values(&radiance);
         let bvh = crate::render::display_bvh(&problem.scene, &problem.mesh);

@@ -107,7 +107,7 @@ impl SolverEntry {
                 file,
                 format!(
                     "solver.name: unknown solver '{n}' (expected auto or one of: {})",
-                    SolverKind::NAMES.join(", ")
+                    SolverKind::names_joined()
                 ),
             ));
         }

@@ -276,8 +276,9 @@ impl<I: Iteration> Solver for MatrixSolver<I> {
     fn residual(&self) -> f64 {
         self.residual
     }
-    /// No display correction: until the first iteration only the lights show.
-    fn element_radiance(&self, _with_ambient: bool) -> Vec<Rgb> {
+    /// The radiosity: no estimate of the light still to arrive (until the first iteration
+    /// only the lights show).
+    fn display_radiance(&self) -> Vec<Rgb> {
         self.radiosity.clone()
     }
     /// Continues from the current solution with the new materials.
@@ -330,8 +331,8 @@ impl<I: Iteration> Solver for MatrixSolver<I> {
         }
         super::residual_error_estimate(problem, &self.radiosity, &self.patch_b, r_max, rho_max)
     }
-    fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
-        (self.problem, self.matrix.cache)
+    fn into_parts(self: Box<Self>) -> (Problem, Option<RowCache>) {
+        (self.problem, Some(self.matrix.cache))
     }
     fn report(&self) -> String {
         self.iteration.report(self.iterations)

@@ -14,7 +14,6 @@
 
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
-use std::time::Instant;
 
 use crate::formfactor::hemicube::ItemBufferRaster;
 use crate::formfactor::{FormFactorMethod, FormFactorParams};
@@ -30,16 +29,23 @@ pub mod matrix;
 pub mod problem;
 pub mod progressive;
 pub mod refine;
+pub mod registry;
 pub mod rows;
+mod run;
 
 pub use cg::CgSolver;
 pub use gathering::{GatherMethod, GatheringSolver};
 pub use hierarchical::HierarchicalSolver;
 pub use matrix::MatrixSolver;
 pub use problem::Problem;
+pub use registry::{SolverKind, SolverOption, SolverRow};
+pub use run::{StepRecord, StopCriteria, run_solver, solve_to};
 pub use progressive::ProgressiveSolver;
 pub use rows::RowCache;
 
+/// Everything a solve is set up with: the mesh, how form factors are computed, the memory
+/// budget, and the options of each solver (read only by that solver; the command line
+/// refuses an option the chosen solver does not read, [`SolverKind::refuse_unread`]).
 #[derive(Clone, Debug)]
 pub struct SolverConfig {
     /// Element edge length; `None` = [`crate::mesh::default_element_size`].
@@ -49,29 +55,20 @@ pub struct SolverConfig {
     /// Element budget for the element size when `element_size` is `None`; `None` =
     /// [`crate::mesh::default_element_size`].
     pub max_elements: Option<usize>,
-    pub method: FormFactorMethod,
-    pub formfactor: FormFactorParams,
+    /// A priori discontinuity meshing: the lights' shadow outlines become element edges
+    /// (`--discontinuity`, [`crate::mesh::discontinuity`]).
+    pub discontinuity: bool,
+    /// How form-factor rows are computed.
+    pub formfactor: FormFactorConfig,
     /// The run's memory budget in bytes ([`crate::budget`]): the textures and the mesh
     /// draw on it first (a mesh that cannot fit is refused before meshing), cached rows,
     /// a stored matrix and hierarchical links get what is left
     /// ([`Problem::cache_bytes`]; gathering solvers refuse a matrix that does not fit).
     pub memory_bytes: usize,
-    /// Overshooting (Feda & Purgathofer 1992): each shot also sends the light the shooter
-    /// is expected to receive later, `ρ_i · ambient`, and keeps it as negative unshot
-    /// radiance that the light, when it arrives, cancels.
-    pub overshoot: bool,
-    /// Display correction of shooting: the regional ambient term ([`ambient`]) instead of
-    /// the classic global one.
-    pub regional_ambient: bool,
-    /// Hierarchical radiosity's BF refinement threshold, relative to the scene's area-mean
-    /// emitted radiosity (`--link-tolerance`): smaller gives more links and a finer answer.
-    pub link_tolerance: f64,
-    /// A priori discontinuity meshing: the lights' shadow outlines become element edges
-    /// (`--discontinuity`, [`crate::mesh::discontinuity`]).
-    pub discontinuity: bool,
-    /// The rasteriser of `gpu-hemicube` rows (`nusselt_gpu::GpuHemicube`); required by that
-    /// method, unused by the others.
-    pub raster: Option<Arc<dyn ItemBufferRaster>>,
+    /// Options of progressive shooting.
+    pub shooting: ShootingOptions,
+    /// Options of hierarchical and wavelet radiosity.
+    pub hierarchical: HierarchicalOptions,
 }
 
 impl Default for SolverConfig {
@@ -80,19 +77,75 @@ impl Default for SolverConfig {
             element_size: None,
             patch_size: None,
             max_elements: None,
-            method: FormFactorMethod::Contour,
-            formfactor: FormFactorParams::default(),
-            memory_bytes: crate::budget::FALLBACK_BYTES,
-            overshoot: true,
-            regional_ambient: true,
-            link_tolerance: DEFAULT_LINK_TOLERANCE,
             discontinuity: false,
+            formfactor: FormFactorConfig::default(),
+            memory_bytes: crate::budget::FALLBACK_BYTES,
+            shooting: ShootingOptions::default(),
+            hierarchical: HierarchicalOptions::default(),
+        }
+    }
+}
+
+/// How form-factor rows are computed (`--formfactor` and its settings), read by the solvers
+/// that store rows (shooting, gathering, cg); hierarchical and wavelet radiosity estimate
+/// their links themselves and read only `params.seed`.
+#[derive(Clone, Debug)]
+pub struct FormFactorConfig {
+    pub method: FormFactorMethod,
+    pub params: FormFactorParams,
+    /// The rasteriser of `gpu-hemicube` rows (`nusselt_gpu::GpuHemicube`); required by that
+    /// method, unused by the others.
+    pub raster: Option<Arc<dyn ItemBufferRaster>>,
+}
+
+impl Default for FormFactorConfig {
+    fn default() -> Self {
+        Self {
+            method: FormFactorMethod::Contour,
+            params: FormFactorParams::default(),
             raster: None,
         }
     }
 }
 
-/// Default of [`SolverConfig::link_tolerance`].
+/// Options of progressive shooting ([`ProgressiveSolver`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShootingOptions {
+    /// Overshooting (Feda & Purgathofer 1992): each shot also sends the light the shooter
+    /// is expected to receive later, `ρ_i · ambient`, and keeps it as negative unshot
+    /// radiance that the light, when it arrives, cancels.
+    pub overshoot: bool,
+    /// Display correction: the regional ambient term ([`ambient`]) instead of the classic
+    /// global one.
+    pub regional_ambient: bool,
+}
+
+impl Default for ShootingOptions {
+    fn default() -> Self {
+        Self {
+            overshoot: true,
+            regional_ambient: true,
+        }
+    }
+}
+
+/// Options of hierarchical and wavelet radiosity ([`HierarchicalSolver`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HierarchicalOptions {
+    /// The BF refinement threshold, relative to the scene's area-mean emitted radiosity
+    /// (`--link-tolerance`): smaller gives more links and a finer answer.
+    pub link_tolerance: f64,
+}
+
+impl Default for HierarchicalOptions {
+    fn default() -> Self {
+        Self {
+            link_tolerance: DEFAULT_LINK_TOLERANCE,
+        }
+    }
+}
+
+/// Default of [`HierarchicalOptions::link_tolerance`].
 pub const DEFAULT_LINK_TOLERANCE: f64 = 0.002;
 
 #[derive(Debug, thiserror::Error)]
@@ -162,30 +215,7 @@ fn check_power(materials: &[crate::scene::Material], mesh: &Mesh) -> Result<(), 
     Ok(())
 }
 
-/// When to stop [`ProgressiveSolver::run`].
-#[derive(Clone, Copy, Debug)]
-pub struct StopCriteria {
-    /// Remaining unshot power over emitted power.
-    pub unshot: f64,
-    pub max_shots: Option<usize>,
-    pub max_seconds: Option<f64>,
-    /// Stop when the solver's estimate of the remaining relative error of every element
-    /// ([`Solver::error_estimate`]) falls to this (`--tolerance`).
-    pub tolerance: Option<f64>,
-}
-
-impl Default for StopCriteria {
-    fn default() -> Self {
-        Self {
-            unshot: 1e-4,
-            max_shots: None,
-            max_seconds: None,
-            tolerance: None,
-        }
-    }
-}
-
-/// One row of the convergence log.
+/// One row of a shooting run's log ([`ProgressiveSolver::run`]).
 #[derive(Clone, Copy, Debug)]
 pub struct ShotRecord {
     pub shot: usize,
@@ -200,118 +230,13 @@ pub(crate) fn channel_sum(c: Rgb) -> f64 {
     c.x.abs() + c.y.abs() + c.z.abs()
 }
 
-/// Which solver (`--solver`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum SolverKind {
-    Shooting,
-    Jacobi,
-    GaussSeidel,
-    /// Successive over-relaxation; `None` = ω estimated from the first sweeps.
-    Sor(Option<f64>),
-    Cg,
-    /// Hierarchical radiosity with clustering ([`hierarchical`]).
-    Hierarchical,
-    /// Wavelet radiosity with flatlets F2 ([`hierarchical::flatlet`]).
-    Wavelet,
-}
-
-impl SolverKind {
-    /// Names as the command line spells them.
-    pub const NAMES: &'static [&'static str] = &[
-        "shooting",
-        "jacobi",
-        "gauss-seidel",
-        "sor",
-        "cg",
-        "hierarchical",
-        "wavelet",
-    ];
-
-    /// Parses a `--solver` name; `omega` applies to `sor`.
-    pub fn parse(name: &str, omega: Option<f64>) -> Option<SolverKind> {
-        Some(match name {
-            "shooting" => SolverKind::Shooting,
-            "jacobi" => SolverKind::Jacobi,
-            "gauss-seidel" | "gs" => SolverKind::GaussSeidel,
-            "sor" => SolverKind::Sor(omega),
-            "cg" => SolverKind::Cg,
-            "hierarchical" | "hr" => SolverKind::Hierarchical,
-            "wavelet" | "flatlet" => SolverKind::Wavelet,
-            _ => return None,
-        })
-    }
-
-    /// The name as the command line spells it.
-    pub fn name(self) -> &'static str {
-        match self {
-            SolverKind::Shooting => "shooting",
-            SolverKind::Jacobi => "jacobi",
-            SolverKind::GaussSeidel => "gauss-seidel",
-            SolverKind::Sor(_) => "sor",
-            SolverKind::Cg => "cg",
-            SolverKind::Hierarchical => "hierarchical",
-            SolverKind::Wavelet => "wavelet",
-        }
-    }
-
-    /// Whether [`build`](Self::build) would refuse `problem` (ω out of range, a matrix over
-    /// the memory budget), without taking it.
-    pub fn check(self, problem: &Problem) -> Result<(), SolverError> {
-        match self {
-            SolverKind::Shooting | SolverKind::Hierarchical | SolverKind::Wavelet => Ok(()),
-            SolverKind::Sor(omega) => {
-                gathering::check_omega(GatherMethod::Sor(omega))?;
-                matrix::PatchMatrix::check(problem, self.name())
-            }
-            _ => matrix::PatchMatrix::check(problem, self.name()),
-        }
-    }
-
-    /// A solver of this kind on `problem`, starting dark.
-    pub fn build(self, problem: Problem) -> Result<Box<dyn Solver>, SolverError> {
-        self.build_with_rows(problem, RowCache::default())
-    }
-
-    /// As [`build`](Self::build), reusing form-factor rows cached on the same problem (by
-    /// [`Solver::into_parts`] of another solver): switching solvers keeps the mesh and the
-    /// rows.
-    pub fn build_with_rows(
-        self,
-        problem: Problem,
-        rows: RowCache,
-    ) -> Result<Box<dyn Solver>, SolverError> {
-        Ok(match self {
-            SolverKind::Shooting => Box::new(ProgressiveSolver::with_rows(problem, rows)),
-            SolverKind::Jacobi => Box::new(GatheringSolver::with_rows(
-                problem,
-                GatherMethod::Jacobi,
-                rows,
-            )?),
-            SolverKind::GaussSeidel => Box::new(GatheringSolver::with_rows(
-                problem,
-                GatherMethod::GaussSeidel,
-                rows,
-            )?),
-            SolverKind::Sor(omega) => Box::new(GatheringSolver::with_rows(
-                problem,
-                GatherMethod::Sor(omega),
-                rows,
-            )?),
-            SolverKind::Cg => Box::new(CgSolver::with_rows(problem, rows)?),
-            // Links, not rows: cached rows are dropped.
-            SolverKind::Hierarchical => Box::new(HierarchicalSolver::new(problem)),
-            SolverKind::Wavelet => Box::new(HierarchicalSolver::with_basis(
-                problem,
-                hierarchical::Basis::Flatlet,
-            )),
-        })
-    }
-}
-
-/// One solver of the radiosity system. A *step* is a solver's unit of work: a shot, a
-/// form-factor row while a matrix is being built, or a sweep.
+/// One solver of the radiosity system: everything a caller needs to run, show, edit and
+/// switch any solver. A *step* is a solver's unit of work: a shot, a form-factor row while a
+/// matrix is being built, or a sweep. What only progressive shooting has (an ambient term,
+/// unshot radiance, carrying a solution onto a refined mesh) is behind
+/// [`shooting`](Self::shooting).
 pub trait Solver: Send {
-    /// `shooting`, `jacobi`, `gauss-seidel`, `sor`, `cg`, `hierarchical` or `wavelet`.
+    /// Its name in the registry ([`SolverKind::name`]).
     fn name(&self) -> &'static str;
     fn problem(&self) -> &Problem;
     /// One step. `false` when there is nothing left to do or `cancel` was set.
@@ -322,9 +247,16 @@ pub trait Solver: Send {
     fn radiosity(&self) -> &[Rgb];
     /// Relative residual `Σ|r_i|A_i / Σ|E_i|A_i` (1 before the first step).
     fn residual(&self) -> f64;
-    /// Per-element radiance for display, with the solver's estimate of the light still
-    /// missing when `with_ambient`.
-    fn element_radiance(&self, with_ambient: bool) -> Vec<Rgb>;
+    /// An estimate of the largest remaining relative error of an element's radiosity
+    /// (`--tolerance`): what is still to arrive over what the element shows, measured against
+    /// at least 1/1000 of the scene's mean radiosity (so elements that stay dark do not
+    /// hold a solve forever). Costs about a sweep; [`run_solver`] evaluates it at
+    /// geometrically spaced steps.
+    fn error_estimate(&self) -> f64;
+    /// Per-element radiance to show while unconverged: the radiosity plus the solver's
+    /// estimate of the light still to arrive, where it has one (shooting's ambient term);
+    /// the radiosity itself for solvers without such an estimate.
+    fn display_radiance(&self) -> Vec<Rgb>;
     /// Changes a material; the solution continues from its current state where the solver
     /// can, or restarts.
     fn set_material(
@@ -338,114 +270,67 @@ pub trait Solver: Send {
     fn set_lights(&mut self, lights: Vec<crate::scene::Light>);
     /// Back to the dark start (cached form factors kept).
     fn reset(&mut self);
+    /// Memory held by stored form factors (rows, a matrix, links), in bytes.
+    fn matrix_bytes(&self) -> usize;
+    /// A line about solver-specific figures (ω of SOR, links, shots…).
+    fn report(&self) -> String;
+    /// The problem, and the cached form-factor rows where the solver keeps rows, for a
+    /// solver of another kind ([`SolverKind::build_with_rows`]).
+    fn into_parts(self: Box<Self>) -> (Problem, Option<RowCache>);
+    /// What only progressive shooting has; `None` for the other solvers.
+    fn shooting(&self) -> Option<&dyn Shooting> {
+        None
+    }
+    /// [`shooting`](Self::shooting), to carry its solution onto a refined mesh.
+    fn shooting_mut(&mut self) -> Option<&mut dyn Shooting> {
+        None
+    }
+}
+
+/// What only progressive shooting has ([`ProgressiveSolver`]), reached through
+/// [`Solver::shooting`].
+pub trait Shooting {
+    /// The classic global ambient term per channel; [`Solver::display_radiance`] adds
+    /// `ρ_j` times it, or times the regional estimate where that is configured.
+    fn ambient(&self) -> Rgb;
     /// Channel mean of [`ambient`](Self::ambient).
     fn ambient_mean(&self) -> f64 {
         let a = self.ambient();
         (a.x + a.y + a.z) / 3.0
     }
-    /// The classic global ambient term per channel (shooting; zero for solvers without
-    /// one). [`element_radiance`](Self::element_radiance) with `with_ambient` adds `ρ_j`
-    /// times it, or times the regional estimate where that is configured.
-    fn ambient(&self) -> Rgb {
-        Rgb::ZERO
-    }
-    /// The patch the last step shot from (shooting only).
-    fn last_shooter(&self) -> Option<PatchId> {
-        None
-    }
-    /// Unshot radiance per patch (shooting only): what each patch has received and not yet
-    /// shot (negative where overshot light is still to be cancelled).
-    fn unshot(&self) -> Option<&[Rgb]> {
-        None
-    }
-    /// Memory held by stored form factors, in bytes.
-    fn matrix_bytes(&self) -> usize {
-        0
-    }
-    /// An estimate of the largest remaining relative error of an element's radiosity
-    /// (`--tolerance`): what is still to arrive over what the element shows, measured against
-    /// at least 1/1000 of the scene's mean radiosity (so elements that stay dark do not
-    /// hold a solve forever). Costs about a sweep; [`run_solver`] evaluates it at
-    /// geometrically spaced steps.
-    fn error_estimate(&self) -> f64;
-    /// A line about solver-specific figures (ω of SOR, …), empty if none.
-    fn report(&self) -> String {
-        String::new()
-    }
-    /// The problem and the cached form-factor rows, for a solver of another kind
-    /// ([`SolverKind::build_with_rows`]).
-    fn into_parts(self: Box<Self>) -> (Problem, RowCache);
+    /// The patch the last shot came from.
+    fn last_shooter(&self) -> Option<PatchId>;
+    /// Unshot radiance per patch: what each patch has received and not yet shot (negative
+    /// where overshot light is still to be cancelled).
+    fn unshot(&self) -> &[Rgb];
     /// This solution carried onto `problem`, the same scene on a refined mesh, so that the
-    /// solve goes on instead of starting again (shooting:
-    /// [`ProgressiveSolver::carry_to`]); `problem` back where this solver cannot, to be
-    /// solved from dark.
+    /// solve goes on instead of starting again ([`ProgressiveSolver::carry_to`]); `problem`
+    /// back when cancelled, to be solved from dark.
     fn carry_to(
         &mut self,
         problem: Problem,
         cancel: &AtomicBool,
-    ) -> Result<Box<dyn Solver>, Box<Problem>> {
-        let _ = cancel;
-        Err(Box::new(problem))
-    }
+    ) -> Result<Box<dyn Solver>, Box<Problem>>;
 }
 
-/// One row of a generic run's log.
-#[derive(Clone, Copy, Debug)]
-pub struct StepRecord {
-    pub step: usize,
-    pub seconds: f64,
-    pub residual: f64,
-}
-
-/// [`run_solver`] to a residual of `unshot`, uncancelled and unwatched: for batch runs,
-/// benches and tests.
-pub fn solve_to(solver: &mut dyn Solver, unshot: f64) {
-    let stop = StopCriteria {
-        unshot,
-        ..Default::default()
-    };
-    run_solver(solver, &stop, &AtomicBool::new(false), &mut |_, _| {});
-}
-
-/// Steps `solver` until `stop` is met (`unshot` is the residual target; `max_shots` counts
-/// steps; `tolerance` is checked after 10 % more steps each time, so a run may overshoot
-/// it by that many); calls `on_step` after each step.
-pub fn run_solver(
+/// `solver`'s solution carried onto `problem`, the same scene on a refined mesh, where the
+/// solver can carry one ([`Shooting::carry_to`]); `problem` back otherwise, to be solved
+/// from dark.
+pub fn carry_solution(
     solver: &mut dyn Solver,
-    stop: &StopCriteria,
+    problem: Problem,
     cancel: &AtomicBool,
-    on_step: &mut dyn FnMut(&StepRecord, &dyn Solver),
-) {
-    let start = Instant::now();
-    let mut next_check = solver.steps();
-    loop {
-        let residual = solver.residual();
-        let tolerance_met = stop.tolerance.is_some_and(|t| {
-            solver.steps() >= next_check && {
-                next_check = solver.steps() + solver.steps() / 10 + 1;
-                solver.error_estimate() <= t
-            }
-        });
-        if residual.is_nan()
-            || tolerance_met
-            || residual <= stop.unshot
-            || stop.max_shots.is_some_and(|n| solver.steps() >= n)
-            || stop
-                .max_seconds
-                .is_some_and(|s| start.elapsed().as_secs_f64() >= s)
-        {
-            return;
-        }
-        if !solver.step(cancel) {
-            return;
-        }
-        let record = StepRecord {
-            step: solver.steps(),
-            seconds: start.elapsed().as_secs_f64(),
-            residual: solver.residual(),
-        };
-        on_step(&record, solver);
+) -> Result<Box<dyn Solver>, Box<Problem>> {
+    match solver.shooting_mut() {
+        Some(shooting) => shooting.carry_to(problem, cancel),
+        None => Err(Box::new(problem)),
     }
+}
+
+/// The channel-mean ambient term of `solver` (0 for solvers without one), for logs and
+/// panels.
+pub fn ambient_mean(solver: &dyn Solver) -> f64 {
+    solver.shooting().map_or(0.0, |s| s.ambient_mean())
 }
 
 /// The Jacobi-style error estimate of the gathering solvers: with the largest residual

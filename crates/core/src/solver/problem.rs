@@ -108,7 +108,7 @@ impl Problem {
     /// Refuses a light whose power would overflow ([`SolverError::PowerOverflow`]) and the
     /// GPU hemicube without a rasteriser.
     pub fn new(scene: Scene, config: SolverConfig) -> Result<Self, SolverError> {
-        if config.method == FormFactorMethod::GpuHemicube && config.raster.is_none() {
+        if config.formfactor.method == FormFactorMethod::GpuHemicube && config.formfactor.raster.is_none() {
             return Err(SolverError::NoRaster);
         }
         check_mesh_budget(&scene, &config)?;
@@ -400,15 +400,15 @@ impl Problem {
             scene: &self.scene,
             mesh: &self.mesh,
             bvh: &self.bvh,
-            params: &self.config.formfactor,
+            params: &self.config.formfactor.params,
             epsilon: self.epsilon,
-            raster: self.config.raster.as_deref(),
+            raster: self.config.formfactor.raster.as_deref(),
         }
     }
 
     /// Installs the rasteriser used by `gpu-hemicube` rows.
     pub fn set_raster(&mut self, raster: Option<Arc<dyn ItemBufferRaster>>) {
-        self.config.raster = raster;
+        self.config.formfactor.raster = raster;
     }
 
     /// Checks a new reflectance and emission for material `idx` and installs them.

@@ -25,7 +25,6 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
-use std::time::Instant;
 
 use rayon::prelude::*;
 
@@ -38,7 +37,9 @@ use crate::scene::{MaterialId, Rgb, Scene};
 use super::ambient::RegionalAmbient;
 use super::problem::Problem;
 use super::rows::RowCache;
-use super::{ShotRecord, SolverConfig, SolverError, StopCriteria, channel_sum};
+use super::{
+    ShotRecord, SolverConfig, SolverError, StopCriteria, channel_sum, run_solver,
+};
 
 mod carry;
 mod display;
@@ -71,7 +72,7 @@ const SHOOTER_TIE: f64 = 1e-9;
 /// let mut solver = ProgressiveSolver::new(scene, config)?;
 /// assert_eq!(solver.unshot_fraction(), 1.0); // Nothing shot yet.
 ///
-/// let stop = StopCriteria { unshot: 1e-4, ..Default::default() };
+/// let stop = StopCriteria::residual(1e-4);
 /// solver.run(&stop, &AtomicBool::new(false), &mut |shot| {
 ///     assert!(shot.unshot_fraction.is_finite());
 /// });
@@ -162,10 +163,10 @@ impl ProgressiveSolver {
     /// Switches the form-factor method (clears cached rows, restarts from dark). Refused
     /// (nothing changes) for `gpu-hemicube` without a rasteriser ([`set_raster`](Self::set_raster)).
     pub fn set_method(&mut self, method: FormFactorMethod) -> Result<(), SolverError> {
-        if method == FormFactorMethod::GpuHemicube && self.problem.config.raster.is_none() {
+        if method == FormFactorMethod::GpuHemicube && self.problem.config.formfactor.raster.is_none() {
             return Err(SolverError::NoRaster);
         }
-        self.problem.config.method = method;
+        self.problem.config.formfactor.method = method;
         self.rows.clear();
         self.reset();
         Ok(())
@@ -178,7 +179,7 @@ impl ProgressiveSolver {
 
     /// Turns overshooting on or off (takes effect from the next shot).
     pub fn set_overshoot(&mut self, on: bool) {
-        self.problem.config.overshoot = on;
+        self.problem.config.shooting.overshoot = on;
     }
 
     pub fn scene(&self) -> &Scene {
@@ -317,38 +318,29 @@ impl ProgressiveSolver {
         Some(shooter)
     }
 
-    /// Shoots until `stop` is met; calls `on_shot` after each shot.
+    /// Shoots until `stop` is met ([`run_solver`]: the one run loop, every stop rule);
+    /// calls `on_shot` after each shot.
     pub fn run(
         &mut self,
         stop: &StopCriteria,
         cancel: &AtomicBool,
         on_shot: &mut dyn FnMut(&ShotRecord),
     ) {
-        let start = Instant::now();
-        loop {
-            // A NaN fraction stops too instead of shooting forever.
-            let fraction = self.unshot_fraction();
-            if fraction.is_nan()
-                || fraction <= stop.unshot
-                || stop.max_shots.is_some_and(|n| self.shots >= n)
-                || stop
-                    .max_seconds
-                    .is_some_and(|s| start.elapsed().as_secs_f64() >= s)
-            {
-                return;
-            }
-            let Some(shooter) = self.shoot(cancel) else {
+        run_solver(self, stop, cancel, &mut |step, solver| {
+            let Some(shooting) = solver.shooting() else {
                 return;
             };
-            let ambient = self.ambient();
+            let Some(shooter) = shooting.last_shooter() else {
+                return;
+            };
             on_shot(&ShotRecord {
-                shot: self.shots,
-                seconds: start.elapsed().as_secs_f64(),
-                unshot_fraction: self.unshot_fraction(),
-                ambient: (ambient.x + ambient.y + ambient.z) / 3.0,
+                shot: step.step,
+                seconds: step.seconds,
+                unshot_fraction: step.residual,
+                ambient: shooting.ambient_mean(),
                 shooter,
             });
-        }
+        });
     }
 
     /// Changes a material's reflectance and emission; the difference becomes unshot
@@ -433,8 +425,8 @@ mod tests {
         s.unshot[0] = Rgb::splat(f64::NAN);
         assert!(s.unshot_fraction().is_nan());
         let stop = StopCriteria {
-            unshot: 1e-4,
-            max_shots: None,
+            residual: 1e-4,
+            max_steps: None,
             // Only so that a regression fails in bounded time; the run must not get here.
             max_seconds: Some(20.0),
             tolerance: None,

@@ -106,7 +106,7 @@ fn refine_within(
     let mut solver = kind.build(problem)?;
     for _ in 0..passes {
         solve_to(solver.as_mut(), unshot.max(1e-3));
-        let radiance = solver.element_radiance(false);
+        let radiance = solver.radiosity().to_vec();
         let mesh = &solver.problem().mesh;
         let next = next_levels(solver.problem(), &radiance, &levels, tolerance, passes);
         let level = |v: &[u8], b: u32| i32::from(v.get(b as usize).copied().unwrap_or(0));
@@ -148,7 +148,7 @@ fn refine_within(
         let refined = Problem::with_mesh(solved.scene.clone(), solved.config.clone(), mesh)?;
         let (next, why) = kind_for(&refined, choice);
         solver = if next == kind {
-            match solver.carry_to(refined, &never) {
+            match super::carry_solution(solver.as_mut(), refined, &never) {
                 Ok(carried) => carried,
                 Err(refined) => kind.build(*refined)?,
             }

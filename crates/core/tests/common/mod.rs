@@ -39,8 +39,8 @@ pub fn converge_within(
     let start = std::time::Instant::now();
     s.run(
         &nusselt_core::solver::StopCriteria {
-            unshot,
-            max_shots: None,
+            residual: unshot,
+            max_steps: None,
             max_seconds: Some(budget_s),
             tolerance: None,
         },
@@ -75,7 +75,12 @@ pub fn converge_within(
 pub fn assert_sane(s: &nusselt_core::solver::ProgressiveSolver) {
     let name = &s.scene().name;
     for ambient in [false, true] {
-        for (j, b) in s.element_radiance(ambient).iter().enumerate() {
+        let shown = if ambient {
+            s.display_radiance()
+        } else {
+            s.radiosity().to_vec()
+        };
+        for (j, b) in shown.iter().enumerate() {
             assert!(
                 b.is_finite() && b.min_element() >= 0.0,
                 "{name}: element {j} radiance {b} (ambient {ambient})"
@@ -88,7 +93,7 @@ pub fn assert_sane(s: &nusselt_core::solver::ProgressiveSolver) {
             "{name}: element {j} incident {h}"
         );
     }
-    let vertex_radiance = s.mesh().vertex_values(&s.element_radiance(true));
+    let vertex_radiance = s.mesh().vertex_values(&s.display_radiance());
     for (v, b) in vertex_radiance.iter().enumerate() {
         assert!(
             b.is_finite() && b.min_element() >= 0.0,

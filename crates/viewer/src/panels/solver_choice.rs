@@ -19,8 +19,8 @@ pub(super) fn solver_choice(
     egui::ComboBox::from_label("solver")
         .selected_text(name)
         .show_ui(ui, |ui| {
-            for n in SolverKind::NAMES {
-                ui.selectable_value(&mut name, *n, *n);
+            for n in SolverKind::names() {
+                ui.selectable_value(&mut name, n, n);
             }
         });
     let mut wanted = (name != current.name()).then_some(name);

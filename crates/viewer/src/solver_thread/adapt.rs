@@ -64,7 +64,7 @@ impl Worker {
             return;
         }
         let mesh = &solver.problem().mesh;
-        let radiance = solver.element_radiance(false);
+        let radiance = solver.radiosity().to_vec();
         let next = next_levels(
             solver.problem(),
             &radiance,
@@ -116,7 +116,7 @@ impl Worker {
                 // delivered is kept, the lights re-aimed through the finer rows); else
                 // from dark.
                 let start = std::time::Instant::now();
-                match solver.carry_to(p, &self.cancel) {
+                match nusselt_core::solver::carry_solution(solver.as_mut(), p, &self.cancel) {
                     Ok(carried) => {
                         // The same solve going on: its clock (which counts the carry's
                         // rows) and history go on too.
@@ -125,7 +125,7 @@ impl Worker {
                         self.step_detail = None;
                         self.dirty = true;
                     }
-                    Err(p) => self.build(*p, RowCache::default()),
+                    Err(p) => self.build(*p, None),
                 }
                 self.new_geometry();
                 if let Some(a) = self.adapting.as_mut() {

@@ -28,13 +28,13 @@ impl Worker {
         if self.area_lights.0 != key {
             self.area_lights = (key, Arc::new(problem.scene.area_lights()));
         }
-        let plain = solver.element_radiance(false);
-        let shown = solver.element_radiance(true);
+        let plain = solver.radiosity().to_vec();
+        let shown = solver.display_radiance();
         let correction: Vec<Rgb> = shown.iter().zip(&plain).map(|(s, b)| *s - *b).collect();
         let radiance = geometry.expand(&problem.mesh.vertex_values(&plain));
         let correction = geometry.expand(&problem.mesh.vertex_values(&correction));
         debug_assert!(radiance.iter().flatten().all(|x| x.is_finite()));
-        let ambient = solver.ambient();
+        let ambient = solver.shooting().map_or(Rgb::ZERO, |s| s.ambient());
         debug_assert!(ambient.is_finite());
         let steps_per_second = {
             let h = &self.history;
@@ -73,7 +73,10 @@ impl Worker {
             playing: self.playing,
             converged: (residual <= self.stop_unshot || self.exhausted) && self.adapting.is_none(),
             limit_reached: self.max_shots.is_some_and(|m| solver.steps() >= m),
-            last_shooter: solver.last_shooter().map(|p: PatchId| p.0),
+            last_shooter: solver
+                .shooting()
+                .and_then(|s| s.last_shooter())
+                .map(|p: PatchId| p.0),
         };
         self.seq += 1;
         let now = Instant::now();
@@ -104,7 +107,7 @@ impl Worker {
             scene_textures: problem.scene.textures.clone(),
             scene_camera: self.scene_camera,
             two_sided: problem.scene.two_sided,
-            method: problem.config.method,
+            method: problem.config.formfactor.method,
             solver_kind: self.kind,
             teach_step: self.step_detail.clone(),
             teach_hemicube: self.hemicube_detail.clone(),

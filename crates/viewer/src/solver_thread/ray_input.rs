@@ -37,7 +37,7 @@ impl Worker {
             scene: problem.scene.clone(),
             config: problem.config.clone(),
             mesh: problem.mesh.clone(),
-            radiance: solver.element_radiance(true),
+            radiance: solver.display_radiance(),
         }));
         self.ray_input_key = Some(key);
         self.ray_input_at = Some(Instant::now());

@@ -18,7 +18,7 @@ impl Worker {
     /// Builds a solver of the current kind on `problem`, reusing `rows`. A kind that
     /// refuses the problem (a matrix over the memory budget) falls back to shooting, which
     /// takes any problem, with an error event saying why.
-    pub(super) fn build(&mut self, problem: Problem, rows: RowCache) {
+    pub(super) fn build(&mut self, problem: Problem, rows: Option<RowCache>) {
         let kind = match self.kind.check(&problem) {
             Ok(()) => self.kind,
             Err(e) => {
@@ -53,7 +53,7 @@ impl Worker {
         let (mut problem, mut rows) = solver.into_parts();
         match problem.remesh(size) {
             Ok(()) => {
-                rows.clear();
+                rows = None;
                 self.config.element_size = Some(size);
                 self.build(problem, rows);
                 self.new_geometry();
@@ -101,7 +101,7 @@ impl Worker {
             });
         match result {
             Ok(remap) => {
-                rows.clear();
+                rows = None;
                 self.loaded_materials = Arc::new(remap_loaded(
                     &self.loaded_materials,
                     &remap,
@@ -172,22 +172,22 @@ impl Worker {
             return;
         };
         let (mut problem, mut rows) = solver.into_parts();
-        if problem.config.raster.is_none() {
-            problem.set_raster(self.config.raster.clone());
+        if problem.config.formfactor.raster.is_none() {
+            problem.set_raster(self.config.formfactor.raster.clone());
         }
-        problem.config.method = method;
-        rows.clear();
-        self.config.method = method;
+        problem.config.formfactor.method = method;
+        rows = None;
+        self.config.formfactor.method = method;
         self.build(problem, rows);
     }
 
     /// Starts the GPU hemicube when `method` needs it and it is not running yet; the
     /// reason when it cannot be started.
     pub(super) fn start_raster_for(&mut self, method: FormFactorMethod) -> Result<(), String> {
-        if method == FormFactorMethod::GpuHemicube && self.config.raster.is_none() {
+        if method == FormFactorMethod::GpuHemicube && self.config.formfactor.raster.is_none() {
             let gpu = nusselt_gpu::GpuHemicube::new().map_err(|e| format!("gpu-hemicube: {e}"))?;
             let raster: Arc<dyn ItemBufferRaster> = Arc::new(gpu);
-            self.config.raster = Some(raster);
+            self.config.formfactor.raster = Some(raster);
         }
         Ok(())
     }

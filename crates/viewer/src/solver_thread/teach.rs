@@ -70,7 +70,7 @@ impl Worker {
         let Some(solver) = self.solver.as_mut() else {
             return;
         };
-        if solver.unshot().is_none() {
+        if solver.shooting().is_none() {
             // A gathering solver keeps its matrix on reset, so replaying its steps (rows,
             // then sweeps) would not give the earlier state.
             self.send_event(Event::Error(
@@ -197,7 +197,7 @@ impl Worker {
         let (Some(work), Some(solver)) = (self.matrix_work.as_mut(), &self.solver) else {
             return;
         };
-        let first = hemicube::teaching_patch(solver.problem(), None, solver.last_shooter());
+        let first = hemicube::teaching_patch(solver.problem(), None, solver.shooting().and_then(|s| s.last_shooter()));
         if work.step(solver.problem(), first, &self.cancel) {
             self.dirty = true;
         }
@@ -223,7 +223,7 @@ impl Worker {
                 }
             }
         }
-        let shooter = hemicube::teaching_patch(solver.problem(), None, solver.last_shooter());
+        let shooter = hemicube::teaching_patch(solver.problem(), None, solver.shooting().and_then(|s| s.last_shooter()));
         let done = work.rows_done();
         let due = match self.matrix_published {
             None => true,
@@ -289,7 +289,7 @@ impl Worker {
         else {
             return;
         };
-        let last = solver.last_shooter();
+        let last = solver.shooting().and_then(|s| s.last_shooter());
         let key = (request, last.map(|p| p.0), geometry.id);
         if self.nusselt_key == Some(key) {
             return;
@@ -306,7 +306,7 @@ impl Worker {
         else {
             return;
         };
-        let last = solver.last_shooter();
+        let last = solver.shooting().and_then(|s| s.last_shooter());
         let key = (request, last.map(|p| p.0), geometry.id);
         if self.hemicube_key == Some(key) {
             return;

@@ -310,7 +310,7 @@ impl Worker {
             seconds: self.elapsed.as_secs_f64(),
             steps: solver.steps(),
             residual: solver.residual(),
-            ambient: solver.ambient_mean(),
+            ambient: nusselt_core::solver::ambient_mean(solver.as_ref()),
         };
         let history = Arc::make_mut(&mut self.history);
         if history.len() >= HISTORY_CAPACITY {
@@ -499,7 +499,7 @@ impl Worker {
         });
         file.solver = Some(SolverEntry {
             name: Some(self.kind.name().into()),
-            formfactor: Some(problem.config.method.name().into()),
+            formfactor: Some(problem.config.formfactor.method.name().into()),
             unshot: Some(self.stop_unshot),
         });
         file
@@ -539,7 +539,7 @@ impl Worker {
                 self.kind = kind;
             }
             if let Some(method) = solver.formfactor.as_deref().and_then(|m| m.parse().ok()) {
-                self.config.method = match self.start_raster_for(method) {
+                self.config.formfactor.method = match self.start_raster_for(method) {
                     Ok(()) => method,
                     Err(e) => {
                         self.send_event(Event::Error(format!("{e}; using contour")));

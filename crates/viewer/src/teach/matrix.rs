@@ -201,7 +201,10 @@ mod tests {
             element_size: Some(100.0),
             patch_size: Some(200.0),
             // Exact area-to-area rows: reciprocity is then exact up to visibility sampling.
-            method: nusselt_core::formfactor::FormFactorMethod::Exact,
+            formfactor: nusselt_core::solver::FormFactorConfig {
+                method: nusselt_core::formfactor::FormFactorMethod::Exact,
+                ..Default::default()
+            },
             ..Default::default()
         };
         let problem = Problem::new(scene, config).expect("problem");

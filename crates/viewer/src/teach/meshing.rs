@@ -140,14 +140,14 @@ fn side(
     cancel: &AtomicBool,
 ) -> Result<MeshSide, String> {
     let stop = StopCriteria {
-        unshot: UNSHOT,
+        residual: UNSHOT,
         ..Default::default()
     };
     run_solver(solver.as_mut(), &stop, cancel, &mut |_, _| {});
     if cancel.load(Ordering::Relaxed) {
         return Err("cancelled".into());
     }
-    let radiance: Vec<Rgb> = solver.element_radiance(false);
+    let radiance: Vec<Rgb> = solver.radiosity().to_vec();
     let problem = solver.problem();
     let mesh = &problem.mesh;
     let bvh = nusselt_core::render::display_bvh(&problem.scene, mesh);

@@ -27,10 +27,11 @@ pub struct Before {
 impl Before {
     /// `None` for solvers that do not shoot (no unshot radiance).
     pub fn take(solver: &dyn Solver) -> Option<Before> {
+        let shooting = solver.shooting()?;
         Some(Before {
-            unshot: solver.unshot()?.to_vec(),
+            unshot: shooting.unshot().to_vec(),
             radiosity: solver.radiosity().to_vec(),
-            ambient: solver.ambient(),
+            ambient: shooting.ambient(),
             residual: solver.residual(),
         })
     }
@@ -94,12 +95,13 @@ impl StepDetail {
 
 /// What the step from `before` to `solver`'s state did; `None` if it was not a shot.
 pub fn capture(before: Before, solver: &dyn Solver, geometry: &Geometry) -> Option<StepDetail> {
-    let shooter = solver.last_shooter()?;
+    let shooting = solver.shooting()?;
+    let shooter = shooting.last_shooter()?;
     let problem = solver.problem();
     let i = shooter.0 as usize;
     let patch = problem.mesh.patches.get(i)?;
     let shooter_rho = problem.material_of(shooter).reflectance;
-    let overshoot = problem.config.overshoot;
+    let overshoot = problem.config.shooting.overshoot;
     let basis = if overshoot {
         before.ambient.max(Rgb::ZERO)
     } else {
@@ -125,7 +127,7 @@ pub fn capture(before: Before, solver: &dyn Solver, geometry: &Geometry) -> Opti
         ambient_before: before.ambient,
         shot: unshot + shooter_rho * basis,
         overshoot,
-        ambient_after: solver.ambient(),
+        ambient_after: shooting.ambient(),
         residual_before: before.residual,
         residual_after: solver.residual(),
         row,

@@ -48,7 +48,7 @@ fn solve(scene: Scene, element_size: f64) -> (Problem, Vec<Rgb>) {
         .build(Problem::new(scene, config).expect("problem"))
         .expect("solver");
     solve_to(solver.as_mut(), 1e-6);
-    let radiance = solver.element_radiance(false);
+    let radiance = solver.radiosity().to_vec();
     (solver.into_parts().0, radiance)
 }
 

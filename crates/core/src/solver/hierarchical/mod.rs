@@ -168,7 +168,7 @@ impl HierarchicalSolver {
             sum += self.emission[e.patch.0 as usize].max_element() * e.area;
             area += e.area;
         }
-        self.problem.config.link_tolerance * sum / area.max(f64::MIN_POSITIVE)
+        self.problem.config.hierarchical.link_tolerance * sum / area.max(f64::MIN_POSITIVE)
     }
 
     /// Refines the links against the current radiosity. `false` if cancelled.
@@ -182,7 +182,7 @@ impl HierarchicalSolver {
             bvh: &self.problem.bvh,
             tree: &self.tree,
             epsilon: self.problem.epsilon,
-            seed: self.problem.config.formfactor.seed,
+            seed: self.problem.config.formfactor.params.seed,
             reference_area: self.tree.nodes[root as usize].area / REFERENCE_RECEIVERS,
             flatlets: self.basis == Basis::Flatlet,
         };

@@ -46,8 +46,9 @@ impl Solver for HierarchicalSolver {
     fn residual(&self) -> f64 {
         self.residual
     }
-    /// No display correction: until the first iteration only the lights show.
-    fn element_radiance(&self, _with_ambient: bool) -> Vec<Rgb> {
+    /// The radiosity: no estimate of the light still to arrive (until the first iteration
+    /// only the lights show).
+    fn display_radiance(&self) -> Vec<Rgb> {
         self.radiosity.clone()
     }
     /// Keeps the links and continues from the current solution (later iterations refine
@@ -131,8 +132,9 @@ impl Solver for HierarchicalSolver {
                 ""
             }
     }
-    fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
-        (self.problem, RowCache::default())
+    /// No rows: the hierarchy keeps links.
+    fn into_parts(self: Box<Self>) -> (Problem, Option<RowCache>) {
+        (self.problem, None)
     }
 }
 

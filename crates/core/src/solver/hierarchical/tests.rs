@@ -1,5 +1,6 @@
 //! Tests of hierarchical and wavelet radiosity.
 
+use crate::solver::HierarchicalOptions;
 use super::*;
 use crate::scene::{LoadOptions, Scene};
 use crate::solver::SolverConfig;
@@ -85,7 +86,9 @@ fn solve(s: &mut HierarchicalSolver, residual: f64) {
 fn kernels_of_a_closed_box_match_the_exact_integral() {
     let tolerance = 0.005;
     let config = SolverConfig {
-        link_tolerance: tolerance,
+        hierarchical: HierarchicalOptions {
+            link_tolerance: tolerance,
+        },
         ..SolverConfig::default()
     };
     let mut s = solver("furnace", config);
@@ -144,7 +147,9 @@ fn full_solution_errors(basis: Basis, tolerances: &[f64]) -> Vec<f64> {
         let mut s = solver_in(
             "cornell",
             SolverConfig {
-                link_tolerance: tolerance,
+                hierarchical: HierarchicalOptions {
+                    link_tolerance: tolerance,
+                },
                 ..base.clone()
             },
             basis,
@@ -207,7 +212,9 @@ fn wavelet_converges_to_the_full_solution_as_the_tolerance_falls() {
 fn flatlet_blocks_of_a_closed_box_match_the_exact_integral() {
     let tolerance = 0.005;
     let config = SolverConfig {
-        link_tolerance: tolerance,
+        hierarchical: HierarchicalOptions {
+            link_tolerance: tolerance,
+        },
         ..SolverConfig::default()
     };
     let mut s = solver_in("furnace", config, Basis::Flatlet);
@@ -314,7 +321,9 @@ fn a_distant_cluster_receives_by_direction() {
         .expect("scene");
     let config = SolverConfig {
         element_size: Some(0.05),
-        link_tolerance: 0.01,
+        hierarchical: HierarchicalOptions {
+            link_tolerance: 0.01,
+        },
         ..SolverConfig::default()
     };
     let mut s = HierarchicalSolver::new(Problem::new(scene, config).expect("problem"));

@@ -44,24 +44,21 @@ impl ProgressiveSolver {
         regional.incoming(&area, &self.unshot, &rho)
     }
 
-    /// Per-element radiance for display: `B_j + ρ_j · G_j` when `with_ambient`, `G` the
-    /// regional ambient term or (`regional_ambient` off) the classic one.
+    /// Per-element radiance for display: `B_j + ρ_j · G_j`, `G` the regional ambient term
+    /// or (`regional_ambient` off) the classic one.
     ///
     /// With overshooting the ambient term can be negative (light sent ahead and not yet
     /// cancelled: the image is too bright on average, and the term is still exact on
     /// average in a closed uniform scene); an element it would take below zero shows 0.
-    pub fn element_radiance(&self, with_ambient: bool) -> Vec<Rgb> {
-        if !with_ambient {
-            return self.radiosity.clone();
-        }
-        if self.problem.config.regional_ambient {
+    pub fn display_radiance(&self) -> Vec<Rgb> {
+        if self.problem.config.shooting.regional_ambient {
             self.shown_with(&self.regional_ambient())
         } else {
             self.element_radiance_global_ambient()
         }
     }
 
-    /// [`element_radiance`](Self::element_radiance) with the classic global ambient term,
+    /// [`display_radiance`](Self::display_radiance) with the classic global ambient term,
     /// whatever the configuration (for comparing the two).
     pub fn element_radiance_global_ambient(&self) -> Vec<Rgb> {
         self.shown_with(&vec![self.ambient(); self.problem.mesh.patches.len()])
@@ -86,7 +83,7 @@ impl ProgressiveSolver {
     /// `H_j = Σ F_ji T_i ≥ 0` and every `B_j = E_j + ρ_j H_j ≥ 0`. A negative ambient
     /// (overshot light not yet cancelled) would break the chain.
     pub(super) fn overshoot_basis(&self) -> Rgb {
-        if self.problem.config.overshoot {
+        if self.problem.config.shooting.overshoot {
             self.ambient().max(Rgb::ZERO)
         } else {
             Rgb::ZERO

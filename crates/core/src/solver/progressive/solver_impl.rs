@@ -3,7 +3,7 @@
 use std::sync::atomic::AtomicBool;
 
 use super::super::rows::RowCache;
-use super::super::{Problem, Solver, SolverError};
+use super::super::{Problem, Shooting, Solver, SolverError};
 use super::ProgressiveSolver;
 use crate::mesh::PatchId;
 use crate::scene::{MaterialId, Rgb};
@@ -27,8 +27,8 @@ impl Solver for ProgressiveSolver {
     fn residual(&self) -> f64 {
         self.unshot_fraction()
     }
-    fn element_radiance(&self, with_ambient: bool) -> Vec<Rgb> {
-        ProgressiveSolver::element_radiance(self, with_ambient)
+    fn display_radiance(&self) -> Vec<Rgb> {
+        ProgressiveSolver::display_radiance(self)
     }
     fn set_material(
         &mut self,
@@ -44,14 +44,8 @@ impl Solver for ProgressiveSolver {
     fn reset(&mut self) {
         ProgressiveSolver::reset(self)
     }
-    fn ambient(&self) -> Rgb {
-        ProgressiveSolver::ambient(self)
-    }
     fn matrix_bytes(&self) -> usize {
         self.rows.bytes()
-    }
-    fn last_shooter(&self) -> Option<PatchId> {
-        self.last_shooter
     }
     /// `ρ_j |G_j|` over what the element shows, `G` the regional ambient term (the light the
     /// unshot power is expected to bring).
@@ -69,11 +63,37 @@ impl Solver for ProgressiveSolver {
             })
             .fold(0.0, f64::max)
     }
-    fn unshot(&self) -> Option<&[Rgb]> {
-        Some(&self.unshot)
+    fn into_parts(self: Box<Self>) -> (Problem, Option<RowCache>) {
+        (self.problem, Some(self.rows))
     }
-    fn into_parts(self: Box<Self>) -> (Problem, RowCache) {
-        (self.problem, self.rows)
+    fn shooting(&self) -> Option<&dyn Shooting> {
+        Some(self)
+    }
+    fn shooting_mut(&mut self) -> Option<&mut dyn Shooting> {
+        Some(self)
+    }
+    fn report(&self) -> String {
+        format!(
+            "{} shots{}",
+            self.shots,
+            if self.problem.config.shooting.overshoot {
+                ", overshooting"
+            } else {
+                ""
+            }
+        )
+    }
+}
+
+impl Shooting for ProgressiveSolver {
+    fn ambient(&self) -> Rgb {
+        ProgressiveSolver::ambient(self)
+    }
+    fn last_shooter(&self) -> Option<PatchId> {
+        self.last_shooter
+    }
+    fn unshot(&self) -> &[Rgb] {
+        &self.unshot
     }
     fn carry_to(
         &mut self,
@@ -81,16 +101,5 @@ impl Solver for ProgressiveSolver {
         cancel: &AtomicBool,
     ) -> Result<Box<dyn Solver>, Box<Problem>> {
         ProgressiveSolver::carry_to(self, problem, cancel).map(|s| Box::new(s) as Box<dyn Solver>)
-    }
-    fn report(&self) -> String {
-        format!(
-            "{} shots{}",
-            self.shots,
-            if self.problem.config.overshoot {
-                ", overshooting"
-            } else {
-                ""
-            }
-        )
     }
 }

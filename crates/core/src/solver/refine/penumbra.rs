@@ -187,7 +187,7 @@ mod tests {
             .build(Problem::new(scene, config).expect("problem"))
             .expect("solver");
         solve_to(solver.as_mut(), 1e-3);
-        let radiance = solver.element_radiance(false);
+        let radiance = solver.radiosity().to_vec();
         let problem = solver.problem();
         let crossed = penumbra_bases(problem, &radiance, 0.1);
         let mesh = &problem.mesh;

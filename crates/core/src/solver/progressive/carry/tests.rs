@@ -22,7 +22,7 @@ fn meshed(scene: &Scene, levels: &[u8]) -> Problem {
 fn solved(scene: &Scene, levels: &[u8], unshot: f64) -> ProgressiveSolver {
     let mut s = ProgressiveSolver::from_problem(meshed(scene, levels));
     let stop = StopCriteria {
-        unshot,
+        residual: unshot,
         ..Default::default()
     };
     s.run(&stop, &AtomicBool::new(false), &mut |_| {});
@@ -194,7 +194,7 @@ fn a_carried_furnace_converges_like_one_solved_from_dark() {
     };
     let never = AtomicBool::new(false);
     let stop = |unshot| StopCriteria {
-        unshot,
+        residual: unshot,
         ..Default::default()
     };
     let exact = 1.0 / (1.0 - rho);
@@ -232,7 +232,7 @@ fn a_carried_cornell_box_converges_like_one_solved_from_dark() {
     let scene = cornell();
     let never = AtomicBool::new(false);
     let stop = |unshot| StopCriteria {
-        unshot,
+        residual: unshot,
         ..Default::default()
     };
     let mut old = solved(&scene, &[], 1e-2);
