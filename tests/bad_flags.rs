@@ -355,12 +355,32 @@ fn solver_flags_are_checked() {
     refused(&with(&["--max-memory", "0"]), "--max-memory");
     refused(
         &with(&["--solver", "cg", "--omega", "1.5"]),
-        "--omega is the relaxation factor of --solver sor",
+        "--omega is a setting of --solver sor; --solver cg does not use it",
     );
-    refused(&with(&["--omega", "1.5"]), "does nothing for --solver auto");
+    refused(
+        &with(&["--omega", "1.5"]),
+        "--solver auto (shooting or hierarchical) does not use it",
+    );
     refused(
         &with(&["--solver", "shooting", "--omega", "1.5"]),
-        "does nothing for --solver shooting",
+        "--solver shooting does not use it",
+    );
+    // Settings a solver would ignore are refused, naming the flag (the registry's rows).
+    refused(
+        &with(&["--solver", "hierarchical", "--formfactor", "hemicube"]),
+        "--formfactor is a setting of --solver shooting and jacobi",
+    );
+    refused(
+        &with(&["--solver", "wavelet", "--no-overshoot"]),
+        "--no-overshoot is a setting of --solver shooting; --solver wavelet does not use it",
+    );
+    refused(
+        &with(&["--solver", "cg", "--ambient", "global"]),
+        "--ambient is a setting of --solver shooting",
+    );
+    refused(
+        &with(&["--formfactor", "hemicube", "--link-tolerance", "0.01"]),
+        "settings of different solvers",
     );
     refused(
         &with(&["--solver", "hierarchical", "--link-tolerance", "0"]),
@@ -370,7 +390,7 @@ fn solver_flags_are_checked() {
     // links refuses it.
     refused(
         &with(&["--solver", "shooting", "--link-tolerance", "0.01"]),
-        "--link-tolerance is the refinement threshold of --solver hierarchical",
+        "--link-tolerance is a setting of --solver hierarchical and wavelet; --solver shooting does not use it",
     );
     refused(&with(&["--tolerance", "0"]), "--tolerance");
     refused(&with(&["--tolerance", "nan"]), "--tolerance");
@@ -412,7 +432,7 @@ fn view_solver_flags_are_checked() {
     refused(&with(&["--solver", "newton"]), "unknown --solver 'newton'");
     refused(
         &with(&["--solver", "jacobi", "--omega", "1.5"]),
-        "--omega is the relaxation factor of --solver sor; it does not apply to --solver jacobi",
+        "--omega is a setting of --solver sor; --solver jacobi does not use it",
     );
     refused(&with(&["--omega", "1.5"]), "--solver shooting");
     refused(

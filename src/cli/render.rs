@@ -15,8 +15,8 @@ use super::{MAX_RAYS, MAX_VIS_RAYS, SceneArgs, ViewArgs, check_count, check_outp
 use nusselt_core::formfactor::FormFactorParams;
 use nusselt_core::render::{self, Image};
 use nusselt_core::solver::{
-    FormFactorConfig, HierarchicalOptions, Problem, ShootingOptions, SolverConfig, SolverKind,
-    StopCriteria, run_solver,
+    FormFactorConfig, HierarchicalOptions, OptionSet, Problem, ShootingOptions, SolverConfig,
+    SolverKind, SolverOption, StopCriteria, run_solver,
 };
 
 #[derive(Args, Debug)]
@@ -206,6 +206,23 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
     )
 }
 
+/// The solver options the flags set (each read by some solvers only).
+fn options_given(args: &RenderArgs) -> OptionSet {
+    let mut given = OptionSet::default();
+    for (set, option) in [
+        (args.formfactor.is_some(), SolverOption::FormFactor),
+        (args.no_overshoot, SolverOption::Overshoot),
+        (args.ambient != "regional", SolverOption::Ambient),
+        (args.omega.is_some(), SolverOption::Omega),
+        (args.link_tolerance.is_some(), SolverOption::LinkTolerance),
+    ] {
+        if set {
+            given.insert(option);
+        }
+    }
+    given
+}
+
 fn render(args: &RenderArgs) -> Result<()> {
     let process_start = Instant::now();
     // Every flag first: a typo must not cost a scene load or a solve.
@@ -265,25 +282,18 @@ fn render(args: &RenderArgs) -> Result<()> {
             )
         })?),
     };
-    if args.omega.is_some() && !matches!(asked, Some(SolverKind::Sor(_))) {
-        bail!(
-            "--omega is the relaxation factor of --solver sor; it does nothing for --solver {}",
-            solver_name
-        );
+    if let Some(t) = args.link_tolerance
+        && !(t.is_finite() && t > 0.0)
+    {
+        bail!("--link-tolerance must be a positive number, got {t}");
     }
-    if let Some(t) = args.link_tolerance {
-        if !(t.is_finite() && t > 0.0) {
-            bail!("--link-tolerance must be a positive number, got {t}");
-        }
-        if let Some(kind) = asked
-            && !matches!(kind, SolverKind::Hierarchical | SolverKind::Wavelet)
-        {
-            bail!(
-                "--link-tolerance is the refinement threshold of --solver hierarchical and wavelet; it does nothing for --solver {}",
-                kind.name()
-            );
-        }
+    // A setting the solver would ignore is refused (auto: chooses a solver that reads it).
+    let given = options_given(args);
+    match asked {
+        Some(kind) => kind.refuse_unread(given),
+        None => nusselt_core::solver::auto::check_given(given),
     }
+    .map_err(anyhow::Error::msg)?;
     if let Some(p) = patch_size
         && !(p.is_finite() && p > 0.0)
     {
@@ -349,7 +359,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     let problem = Problem::new(scene, config)?;
     let run = nusselt_core::solver::auto::RunShape {
         progressive_image: args.seconds.is_some(),
-        link_tolerance: args.link_tolerance.is_some(),
+        given,
     };
     let (kind, mut auto_reason) = match asked {
         Some(kind) => (kind, None),

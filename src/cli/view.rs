@@ -8,7 +8,7 @@ use clap::Args;
 
 use super::SceneArgs;
 use nusselt_core::formfactor::FormFactorMethod;
-use nusselt_core::solver::SolverKind;
+use nusselt_core::solver::{OptionSet, SolverKind, SolverOption};
 use nusselt_viewer::teach::TeachView;
 use nusselt_viewer::{
     Automation, EditSpec, ScreenshotPlan, ScreenshotWhen, UiOptions, ViewerOptions,
@@ -170,12 +170,13 @@ fn parse_window(text: &str) -> Result<[f32; 2]> {
 /// Why `--solver auto` is shooting in the viewer (`nusselt_core::solver::auto`).
 const VIEWER_AUTO_REASON: &str = "shooting: the viewer shows the solution while it converges, and shooting improves it with every shot (hierarchical radiosity shows nothing before its refinement ends)";
 
-/// `--solver NAME [--omega W]`: ω only with sor, and in (0, 2).
-fn parse_solver(name: &str, omega: Option<f64>) -> Result<SolverKind> {
+/// `--solver NAME [--omega W]`: ω only with sor, and in (0, 2); `--formfactor` (given when
+/// `formfactor`) only with a solver that computes rows.
+fn parse_solver(name: &str, omega: Option<f64>, formfactor: bool) -> Result<SolverKind> {
     if name == "auto" {
         // What `auto` stands for in the viewer (solver::auto): an image is wanted while
         // solving, whatever the scene's size.
-        return parse_solver("shooting", omega);
+        return parse_solver("shooting", omega, formfactor);
     }
     let kind = SolverKind::parse(name, omega).with_context(|| {
         format!(
@@ -183,16 +184,18 @@ fn parse_solver(name: &str, omega: Option<f64>) -> Result<SolverKind> {
             SolverKind::names_joined()
         )
     })?;
-    if let Some(w) = omega {
-        if !matches!(kind, SolverKind::Sor(_)) {
-            bail!(
-                "--omega is the relaxation factor of --solver sor; it does not apply to --solver {}",
-                kind.name()
-            );
-        }
-        if !(w.is_finite() && w > 0.0 && w < 2.0) {
-            bail!("--omega must be in (0, 2), got {w}");
-        }
+    let mut given = OptionSet::default();
+    if omega.is_some() {
+        given.insert(SolverOption::Omega);
+    }
+    if formfactor {
+        given.insert(SolverOption::FormFactor);
+    }
+    kind.refuse_unread(given).map_err(anyhow::Error::msg)?;
+    if let Some(w) = omega
+        && !(w.is_finite() && w > 0.0 && w < 2.0)
+    {
+        bail!("--omega must be in (0, 2), got {w}");
     }
     Ok(kind)
 }
@@ -221,7 +224,7 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
     };
     let solver_name = args.solver.as_ref().or(file_solver.name.as_ref());
     let solver_name = solver_name.map_or("auto", String::as_str);
-    let solver = parse_solver(solver_name, args.omega)?;
+    let solver = parse_solver(solver_name, args.omega, args.method.is_some())?;
     let teach = match &args.teach {
         Some(name) => Some(TeachView::parse(name).with_context(|| {
             format!(
@@ -335,29 +338,33 @@ mod tests {
     #[test]
     fn solver_names_and_omega() {
         assert_eq!(
-            parse_solver("shooting", None).expect("ok"),
+            parse_solver("shooting", None, false).expect("ok"),
             SolverKind::Shooting
         );
         assert_eq!(
-            parse_solver("gauss-seidel", None).expect("ok"),
+            parse_solver("gauss-seidel", None, false).expect("ok"),
             SolverKind::GaussSeidel
         );
         assert_eq!(
-            parse_solver("sor", Some(1.5)).expect("ok"),
+            parse_solver("sor", Some(1.5), false).expect("ok"),
             SolverKind::Sor(Some(1.5))
         );
         assert_eq!(
-            parse_solver("sor", None).expect("ok"),
+            parse_solver("sor", None, false).expect("ok"),
             SolverKind::Sor(None)
         );
-        let e = parse_solver("jacobi", Some(1.5)).expect_err("omega without sor");
+        let e = parse_solver("jacobi", Some(1.5), false).expect_err("omega without sor");
         assert!(e.to_string().contains("--omega"), "{e}");
         assert!(e.to_string().contains("jacobi"), "{e}");
         for bad in [0.0, 2.0, -1.0, f64::NAN] {
-            let e = parse_solver("sor", Some(bad)).expect_err("omega out of range");
+            let e = parse_solver("sor", Some(bad), false).expect_err("omega out of range");
             assert!(e.to_string().contains("(0, 2)"), "{bad}: {e}");
         }
-        let e = parse_solver("newton", None).expect_err("unknown");
+        let e = parse_solver("newton", None, false).expect_err("unknown");
+        assert!(e.to_string().contains("gauss-seidel"), "{e}");
+        let e = parse_solver("hierarchical", None, true).expect_err("no rows");
+        assert!(e.to_string().contains("--formfactor"), "{e}");
+        assert!(parse_solver("cg", None, true).is_ok());
         assert!(e.to_string().contains("gauss-seidel"), "{e}");
     }
 

@@ -20,7 +20,7 @@
 //! 24.2 / 5.1, the Dabrovic atrium (3.3e8) over 150 / 9.1, the Šibenik cathedral (7.1e8)
 //! 300 / 16. Hence [`HIERARCHICAL_FROM_PAIRS`].
 
-use super::{Problem, SolverKind};
+use super::{OptionSet, Problem, SolverKind};
 
 /// Elements above which a run without a time limit is solved hierarchically.
 pub const HIERARCHICAL_FROM_ELEMENTS: usize = 100_000;
@@ -34,17 +34,48 @@ pub const HIERARCHICAL_FROM_PAIRS: f64 = 5e7;
 pub struct RunShape {
     /// An image is wanted while solving (the viewer) or by a deadline (`--seconds`).
     pub progressive_image: bool,
-    /// `--link-tolerance` was given: the user asked for a hierarchy.
-    pub link_tolerance: bool,
+    /// The solver options given (`--link-tolerance`, `--formfactor`, …): auto chooses a
+    /// solver that reads them all (a hierarchy for `--link-tolerance`, shooting for a
+    /// form-factor method), as if the user had named it.
+    pub given: OptionSet,
+}
+
+/// The solvers `auto` chooses between.
+pub const CANDIDATES: [SolverKind; 2] = [SolverKind::Shooting, SolverKind::Hierarchical];
+
+/// Refuses options that neither of auto's [`CANDIDATES`] reads both with, as a message
+/// naming the first such flag (`--omega` belongs to `sor`, which auto never picks).
+pub fn check_given(given: OptionSet) -> Result<(), String> {
+    if CANDIDATES.iter().any(|k| k.reads_all(given)) {
+        return Ok(());
+    }
+    if let Some(unread) = given
+        .iter()
+        .find(|o| !CANDIDATES.iter().any(|k| k.reads(*o)))
+    {
+        return Err(super::registry::unread_message(
+            unread,
+            "auto (shooting or hierarchical)",
+        ));
+    }
+    let flags: Vec<&str> = given.iter().map(|o| o.flag()).collect();
+    Err(format!(
+        "{} are settings of different solvers (none reads them all): choose one with --solver",
+        flags.join(" and ")
+    ))
 }
 
 /// The solver `auto` stands for on `problem`, and why.
 pub fn choose(problem: &Problem, run: RunShape) -> (SolverKind, String) {
     let n = problem.mesh.elements.len();
-    if run.link_tolerance {
+    if !run.given.is_empty()
+        && let Some(kind) = CANDIDATES.iter().find(|k| k.reads_all(run.given))
+        && !CANDIDATES.iter().all(|k| k.reads_all(run.given))
+    {
+        let flags: Vec<&str> = run.given.iter().map(|o| o.flag()).collect();
         return (
-            SolverKind::Hierarchical,
-            "hierarchical: --link-tolerance is its refinement threshold".into(),
+            *kind,
+            format!("{}: {} is its setting", kind.name(), flags.join(" and ")),
         );
     }
     let patches = problem.mesh.patches.len();
@@ -85,7 +116,7 @@ pub fn choose(problem: &Problem, run: RunShape) -> (SolverKind, String) {
 mod tests {
     use super::*;
     use crate::scene::{LoadOptions, Scene};
-    use crate::solver::SolverConfig;
+    use crate::solver::{SolverConfig, SolverOption};
 
     fn cornell(max_elements: usize) -> Problem {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
@@ -126,9 +157,25 @@ mod tests {
         };
         assert_eq!(choose(&large, watched).0, SolverKind::Shooting);
         let asked = RunShape {
-            link_tolerance: true,
+            given: OptionSet::of(&[SolverOption::LinkTolerance]),
             ..Default::default()
         };
         assert_eq!(choose(&small, asked).0, SolverKind::Hierarchical);
+        // A form-factor method is read by shooting only: a large scene then shoots.
+        let method = RunShape {
+            given: OptionSet::of(&[SolverOption::FormFactor]),
+            ..Default::default()
+        };
+        let (kind, why) = choose(&large, method);
+        assert_eq!(kind, SolverKind::Shooting, "{why}");
+        assert!(why.contains("--formfactor"), "{why}");
+        // Options no candidate reads with the others are refused, naming the flag.
+        let err = check_given(OptionSet::of(&[
+            SolverOption::FormFactor,
+            SolverOption::LinkTolerance,
+        ]))
+        .unwrap_err();
+        assert!(err.contains("--formfactor"), "{err}");
+        assert!(check_given(OptionSet::of(&[SolverOption::Omega])).is_err());
     }
 }

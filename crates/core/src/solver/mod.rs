@@ -38,7 +38,7 @@ pub use gathering::{GatherMethod, GatheringSolver};
 pub use hierarchical::HierarchicalSolver;
 pub use matrix::MatrixSolver;
 pub use problem::Problem;
-pub use registry::{SolverKind, SolverOption, SolverRow};
+pub use registry::{OptionSet, SolverKind, SolverOption, SolverRow};
 pub use run::{StepRecord, StopCriteria, run_solver, solve_to};
 pub use progressive::ProgressiveSolver;
 pub use rows::RowCache;

@@ -29,6 +29,15 @@ pub enum SolverOption {
 }
 
 impl SolverOption {
+    /// Every option, in declaration order.
+    pub const ALL: [SolverOption; 5] = [
+        SolverOption::FormFactor,
+        SolverOption::Overshoot,
+        SolverOption::Ambient,
+        SolverOption::Omega,
+        SolverOption::LinkTolerance,
+    ];
+
     /// The command-line flag that sets it.
     pub fn flag(self) -> &'static str {
         match self {
@@ -38,6 +47,36 @@ impl SolverOption {
             SolverOption::Omega => "--omega",
             SolverOption::LinkTolerance => "--link-tolerance",
         }
+    }
+}
+
+/// A set of [`SolverOption`]s: the ones a run was given.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct OptionSet(u8);
+
+impl OptionSet {
+    /// The set of `options`.
+    pub fn of(options: &[SolverOption]) -> Self {
+        let mut set = Self::default();
+        for &o in options {
+            set.insert(o);
+        }
+        set
+    }
+    pub fn insert(&mut self, option: SolverOption) {
+        self.0 |= 1 << option as u8;
+    }
+    pub fn contains(self, option: SolverOption) -> bool {
+        self.0 & (1 << option as u8) != 0
+    }
+    pub fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+    /// The options in the set, in declaration order.
+    pub fn iter(self) -> impl Iterator<Item = SolverOption> {
+        SolverOption::ALL
+            .into_iter()
+            .filter(move |o| self.contains(*o))
     }
 }
 
@@ -226,24 +265,17 @@ impl SolverKind {
         self.row().reads.contains(&option)
     }
 
+    /// Whether this solver reads every option of `given`.
+    pub fn reads_all(self, given: OptionSet) -> bool {
+        given.iter().all(|o| self.reads(o))
+    }
+
     /// Refuses settings this solver would ignore: the first of `given` it does not read,
     /// as a message naming the flag and the solvers that read it.
-    pub fn refuse_unread(self, given: &[SolverOption]) -> Result<(), String> {
-        match given.iter().find(|o| !self.reads(**o)) {
+    pub fn refuse_unread(self, given: OptionSet) -> Result<(), String> {
+        match given.iter().find(|o| !self.reads(*o)) {
             None => Ok(()),
-            Some(&option) => {
-                let readers: Vec<&str> = Self::ROWS
-                    .iter()
-                    .filter(|r| r.reads.contains(&option))
-                    .map(|r| r.name)
-                    .collect();
-                Err(format!(
-                    "{} is a setting of --solver {}; --solver {} does not use it",
-                    option.flag(),
-                    readers.join(" and "),
-                    self.name()
-                ))
-            }
+            Some(option) => Err(unread_message(option, self.name())),
         }
     }
 
@@ -270,6 +302,20 @@ impl SolverKind {
     }
 }
 
+/// "`--flag` is a setting of --solver a and b; --solver `solver` does not use it".
+pub fn unread_message(option: SolverOption, solver: &str) -> String {
+    let readers: Vec<&str> = SolverKind::ROWS
+        .iter()
+        .filter(|r| r.reads.contains(&option))
+        .map(|r| r.name)
+        .collect();
+    format!(
+        "{} is a setting of --solver {}; --solver {solver} does not use it",
+        option.flag(),
+        readers.join(" and "),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -279,7 +325,7 @@ mod tests {
         for (i, row) in SolverKind::ROWS.iter().enumerate() {
             let kind = SolverKind::parse(row.name, None).expect(row.name);
             assert_eq!(kind, row.parsed);
-            assert!(std::ptr::eq(kind.row(), row), "{}", row.name);
+            assert_eq!(kind.row().name, row.name);
             for alias in row.aliases {
                 assert_eq!(SolverKind::parse(alias, None), Some(kind));
             }
@@ -297,20 +343,20 @@ mod tests {
     #[test]
     fn a_setting_the_solver_ignores_is_refused_by_its_flag() {
         let err = SolverKind::Hierarchical
-            .refuse_unread(&[SolverOption::FormFactor])
+            .refuse_unread(OptionSet::of(&[SolverOption::FormFactor]))
             .unwrap_err();
         assert!(err.contains("--formfactor"), "{err}");
         assert!(err.contains("--solver hierarchical"), "{err}");
         assert!(err.contains("shooting"), "{err}");
         let err = SolverKind::Shooting
-            .refuse_unread(&[SolverOption::Omega])
+            .refuse_unread(OptionSet::of(&[SolverOption::Omega]))
             .unwrap_err();
         assert!(err.contains("--omega is a setting of --solver sor"), "{err}");
         assert!(
             SolverKind::Sor(None)
-                .refuse_unread(&[SolverOption::Omega, SolverOption::FormFactor])
+                .refuse_unread(OptionSet::of(&[SolverOption::Omega, SolverOption::FormFactor]))
                 .is_ok()
         );
-        assert!(SolverKind::Wavelet.refuse_unread(&[]).is_ok());
+        assert!(SolverKind::Wavelet.refuse_unread(OptionSet::default()).is_ok());
     }
 }

@@ -10,7 +10,7 @@
 
 use nusselt_core::mesh::Mesh;
 use nusselt_core::solver::refine::next_levels;
-use nusselt_core::solver::{Problem, RowCache};
+use nusselt_core::solver::Problem;
 
 use super::Event;
 use super::worker::Worker;

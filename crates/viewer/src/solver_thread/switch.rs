@@ -171,14 +171,14 @@ impl Worker {
         let Some(solver) = self.solver.take() else {
             return;
         };
-        let (mut problem, mut rows) = solver.into_parts();
+        // Rows of the old method are dropped.
+        let (mut problem, _) = solver.into_parts();
         if problem.config.formfactor.raster.is_none() {
             problem.set_raster(self.config.formfactor.raster.clone());
         }
         problem.config.formfactor.method = method;
-        rows = None;
         self.config.formfactor.method = method;
-        self.build(problem, rows);
+        self.build(problem, None);
     }
 
     /// Starts the GPU hemicube when `method` needs it and it is not running yet; the
