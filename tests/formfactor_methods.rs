@@ -502,11 +502,11 @@ fn cornell_with(
         formfactor: nusselt_core::solver::FormFactorConfig {
             method,
             params: FormFactorParams {
-            rays: 20_000,
-            hemicube_res: 128,
-            seed,
-            ..Default::default()
-        },
+                rays: 20_000,
+                hemicube_res: 128,
+                seed,
+                ..Default::default()
+            },
             ..Default::default()
         },
         ..Default::default()
@@ -720,11 +720,11 @@ fn hybrid_counts_hemicube_receivers_like_its_element_rule() {
             patch_size: Some(60.0),
             formfactor: nusselt_core::solver::FormFactorConfig {
                 params: FormFactorParams {
-                hybrid_k: k,
-                hybrid_min_pixels: min_pixels,
-                hemicube_res: res,
-                ..Default::default()
-            },
+                    hybrid_k: k,
+                    hybrid_min_pixels: min_pixels,
+                    hemicube_res: res,
+                    ..Default::default()
+                },
                 ..Default::default()
             },
             ..Default::default()

@@ -123,8 +123,7 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
             seed: 1,
             edge_spp: nusselt_core::render::DEFAULT_EDGE_SPP,
         };
-        let direct =
-            render::direct::render_solution(s.problem(), &s.display_radiance(), &settings);
+        let direct = render::direct::render_solution(s.problem(), &s.display_radiance(), &settings);
         let e_direct = render::relative_rms(&direct, &reference, &mask)?;
         let t_direct = solved + t_direct.elapsed().as_secs_f64();
         let n = s.problem().mesh.elements.len();

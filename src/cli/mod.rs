@@ -18,6 +18,7 @@ mod pass;
 mod plot;
 mod reference;
 mod render;
+mod render_report;
 mod view;
 
 use std::path::PathBuf;

@@ -10,13 +10,16 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::method::{MethodArgs, parse_method, raster_for};
-use super::pass::{parse_pass, render_chosen};
+use super::pass::{PassChoice, parse_pass, render_chosen};
+use super::render_report::{Report, Solved};
 use super::{MAX_RAYS, MAX_VIS_RAYS, SceneArgs, ViewArgs, check_count, check_output};
-use nusselt_core::formfactor::FormFactorParams;
+use nusselt_core::formfactor::{FormFactorMethod, FormFactorParams};
 use nusselt_core::render::{self, Image};
+use nusselt_core::scene::Rgb;
+use nusselt_core::scene::file::MeshEntry;
 use nusselt_core::solver::{
-    FormFactorConfig, HierarchicalOptions, OptionSet, Problem, ShootingOptions, SolverConfig,
-    SolverKind, SolverOption, StopCriteria, run_solver,
+    FormFactorConfig, HierarchicalOptions, OptionSet, Problem, ShootingOptions, Solver,
+    SolverConfig, SolverKind, SolverOption, StopCriteria, run_solver,
 };
 
 #[derive(Args, Debug)]
@@ -223,9 +226,121 @@ fn options_given(args: &RenderArgs) -> OptionSet {
     given
 }
 
+/// The whole command: flags, scene, solve, image, outputs, in that order; each phase is a
+/// function below.
 fn render(args: &RenderArgs) -> Result<()> {
     let process_start = Instant::now();
-    // Every flag first: a typo must not cost a scene load or a solve.
+    let plan = check_flags(args)?;
+    let scene = args.scene.load()?;
+    let load_seconds = process_start.elapsed().as_secs_f64();
+    if args.edge_spp > super::MAX_SPP {
+        bail!(
+            "--edge-spp must be at most {}, got {}",
+            super::MAX_SPP,
+            args.edge_spp
+        );
+    }
+    let settings = nusselt_core::render::RenderSettings {
+        edge_spp: args.edge_spp,
+        ..args.view.settings(&scene, args.seed)?
+    };
+    // Read the reference first so a bad path fails before the work.
+    let reference = match &args.reference {
+        Some(p) => Some(Image::load_pfm(p)?),
+        None => None,
+    };
+    let config = solver_config(args, &plan)?;
+    let adapter = config.formfactor.raster.as_ref().map(|r| r.describe());
+    let solve_start = Instant::now();
+    let problem = Problem::new(scene, config)?;
+    let (mut solver, auto_reason) = solver_for(args, &plan, problem)?;
+    if !args.quiet && !args.json {
+        print_mesh(solver.problem());
+    }
+    let stop = StopCriteria {
+        residual: plan.unshot,
+        max_steps: args.shots,
+        max_seconds: args
+            .seconds
+            .map(|s| solve_seconds_within(s, process_start.elapsed().as_secs_f64())),
+        tolerance: args.tolerance,
+    };
+    solve(args, solver.as_mut(), &stop)?;
+    let solve_seconds = solve_start.elapsed().as_secs_f64();
+    let (problem, solved) = Solved::take(solver, args.no_ambient);
+
+    let render_start = Instant::now();
+    let (chosen, image) = render_chosen(
+        plan.pass_choice,
+        process_start,
+        &problem,
+        &solved.radiance,
+        &settings,
+        args.gather_rays,
+    );
+    let render_seconds = render_start.elapsed().as_secs_f64();
+    let exposure = exposure_for(args, &image);
+    image.save(&args.out, exposure)?;
+    let error = match &reference {
+        Some(r) => {
+            let mask = render::error_mask(
+                &problem.scene,
+                &settings.camera,
+                settings.width,
+                settings.height,
+            );
+            Some(render::relative_rms(&image, r, &mask)?)
+        }
+        None => None,
+    };
+    if let Some(p) = &args.elements_csv {
+        write_elements_csv(p, &problem, &solved.radiance)?;
+    }
+    let report = Report {
+        problem: &problem,
+        solved: &solved,
+        camera: &settings.camera,
+        auto_reason,
+        chosen: &chosen,
+        method: plan.method,
+        adapter,
+        load_seconds,
+        solve_seconds,
+        render_seconds,
+        exposure,
+        total_seconds: process_start.elapsed().as_secs_f64(),
+        error,
+    };
+    if args.json {
+        println!("{}", report.summary());
+    } else if !args.quiet {
+        let before_solve = solve_start.duration_since(process_start).as_secs_f64();
+        report.print(args, &stop, before_solve);
+    }
+    if let Some(p) = &args.export_gltf {
+        super::export::export_gltf(&problem, &solved.radiance, p, exposure, args.quiet)?;
+    }
+    Ok(())
+}
+
+/// What the flags ask for, checked before the scene is read.
+struct Plan {
+    /// The residual to solve to.
+    unshot: f64,
+    /// `None`: auto, chosen once the mesh is known (solver::auto).
+    asked: Option<SolverKind>,
+    given: OptionSet,
+    method: FormFactorMethod,
+    pass_choice: PassChoice,
+    regional_ambient: bool,
+    patch_size: Option<f64>,
+    max_elements: Option<usize>,
+    file_mesh: MeshEntry,
+}
+
+/// Every flag, before any work: a typo must not cost a scene load or a solve. A scene
+/// file's mesh and solver settings are defaults; flags given win.
+fn check_flags(args: &RenderArgs) -> Result<Plan> {
     check_image_out(&args.out)?;
     if let Some(p) = &args.export_gltf {
         super::export::check_gltf_out(p)?;
@@ -309,57 +424,62 @@ fn render(args: &RenderArgs) -> Result<()> {
         bail!("--max-elements must be at least 1");
     }
     args.method_args.check()?;
-    let scene = args.scene.load()?;
-    let load_seconds = process_start.elapsed().as_secs_f64();
-    if args.edge_spp > super::MAX_SPP {
-        bail!(
-            "--edge-spp must be at most {}, got {}",
-            super::MAX_SPP,
-            args.edge_spp
-        );
-    }
-    let settings = nusselt_core::render::RenderSettings {
-        edge_spp: args.edge_spp,
-        ..args.view.settings(&scene, args.seed)?
-    };
-    // Read the reference first so a bad path fails before the work.
-    let reference = match &args.reference {
-        Some(p) => Some(Image::load_pfm(p)?),
-        None => None,
-    };
-    let config = SolverConfig {
-        element_size: args.element_size.or(file_mesh.element_size),
+    Ok(Plan {
+        unshot,
+        asked,
+        given,
+        method,
+        pass_choice,
+        regional_ambient,
         patch_size,
         max_elements,
+        file_mesh,
+    })
+}
+
+/// The solve's settings from the flags and the scene file.
+fn solver_config(args: &RenderArgs, plan: &Plan) -> Result<SolverConfig> {
+    let method = plan.method;
+    Ok(SolverConfig {
+        element_size: args.element_size.or(plan.file_mesh.element_size),
+        patch_size: plan.patch_size,
+        max_elements: plan.max_elements,
         memory_bytes: max_memory_bytes(args.max_memory)?,
-        discontinuity: args.discontinuity || file_mesh.discontinuity,
+        discontinuity: args.discontinuity || plan.file_mesh.discontinuity,
         formfactor: FormFactorConfig {
             method,
             params: FormFactorParams {
-            visibility_rays: args.vis_rays,
-            probe_visibility: !args.full_visibility,
-            seed: args.seed,
-            rays: args.rays,
-            ..args.method_args.params()
-        },
+                visibility_rays: args.vis_rays,
+                probe_visibility: !args.full_visibility,
+                seed: args.seed,
+                rays: args.rays,
+                ..args.method_args.params()
+            },
             raster: raster_for(method)?,
         },
         shooting: ShootingOptions {
             overshoot: !args.no_overshoot,
-            regional_ambient,
+            regional_ambient: plan.regional_ambient,
         },
         hierarchical: HierarchicalOptions {
             link_tolerance: args
-            .link_tolerance
-            .unwrap_or(nusselt_core::solver::DEFAULT_LINK_TOLERANCE),
+                .link_tolerance
+                .unwrap_or(nusselt_core::solver::DEFAULT_LINK_TOLERANCE),
         },
-    };
-    let adapter = config.formfactor.raster.as_ref().map(|r| r.describe());
-    let solve_start = Instant::now();
-    let problem = Problem::new(scene, config)?;
+    })
+}
+
+/// The solver asked for, or auto's choice (printed), on `problem`; with `--adaptive`
+/// solved and refined already. The second value is auto's reason, if auto chose.
+fn solver_for(
+    args: &RenderArgs,
+    plan: &Plan,
+    problem: Problem,
+) -> Result<(Box<dyn Solver>, Option<String>)> {
+    let (asked, unshot) = (plan.asked, plan.unshot);
     let run = nusselt_core::solver::auto::RunShape {
         progressive_image: args.seconds.is_some(),
-        given,
+        given: plan.given,
     };
     let (kind, mut auto_reason) = match asked {
         Some(kind) => (kind, None),
@@ -371,7 +491,7 @@ fn render(args: &RenderArgs) -> Result<()> {
             (kind, Some(why))
         }
     };
-    let mut solver = match args.adaptive {
+    let solver = match args.adaptive {
         Some(tolerance) => {
             if !args.quiet && !args.json {
                 eprintln!(
@@ -405,27 +525,26 @@ fn render(args: &RenderArgs) -> Result<()> {
         }
         None => kind.build(problem)?,
     };
-    if !args.quiet && !args.json {
-        let m = &solver.problem().mesh;
-        eprintln!(
-            "meshed {} faces: {} elements (size {:.4}), {} patches (size {:.4}; {} surfaces merged, {} clusters)",
-            solver.problem().scene.faces.len(),
-            m.elements.len(),
-            m.element_size,
-            m.patches.len(),
-            m.patch_size,
-            m.surface_count,
-            m.cluster_count
-        );
-    }
-    let stop = StopCriteria {
-        residual: unshot,
-        max_steps: args.shots,
-        max_seconds: args
-            .seconds
-            .map(|s| solve_seconds_within(s, process_start.elapsed().as_secs_f64())),
-        tolerance: args.tolerance,
-    };
+    Ok((solver, auto_reason))
+}
+
+/// One line on the mesh: faces, elements, patches and their sizes.
+fn print_mesh(problem: &Problem) {
+    let m = &problem.mesh;
+    eprintln!(
+        "meshed {} faces: {} elements (size {:.4}), {} patches (size {:.4}; {} surfaces merged, {} clusters)",
+        problem.scene.faces.len(),
+        m.elements.len(),
+        m.element_size,
+        m.patches.len(),
+        m.patch_size,
+        m.surface_count,
+        m.cluster_count
+    );
+}
+
+/// Runs `solver` to `stop` with a progress bar and the `--log` CSV.
+fn solve(args: &RenderArgs, solver: &mut dyn Solver, stop: &StopCriteria) -> Result<()> {
     let pb = bar(
         args.quiet,
         1000,
@@ -442,7 +561,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     let mut log_error: Option<std::io::Error> = None;
     let never = AtomicBool::new(false);
     let initial = solver.residual().max(1e-300);
-    run_solver(solver.as_mut(), &stop, &never, &mut |r, s| {
+    run_solver(solver, stop, &never, &mut |r, s| {
         if let Some(w) = log.as_mut()
             && let Err(e) = writeln!(
                 w,
@@ -469,42 +588,17 @@ fn render(args: &RenderArgs) -> Result<()> {
     if let Some(mut w) = log {
         w.flush()?;
     }
-    let solve_seconds = solve_start.elapsed().as_secs_f64();
+    Ok(())
+}
 
-    // What the summary needs from the solver, then the solver's working memory (links,
-    // rows, hierarchy) goes before the render builds its own.
-    let radiance = if args.no_ambient {
-        solver.radiosity().to_vec()
-    } else {
-        solver.display_radiance()
-    };
-    let (steps, residual, name) = (solver.steps(), solver.residual(), solver.name());
-    let (report, matrix_bytes) = (solver.report(), solver.matrix_bytes());
-    let setup_total: f64 = solver.problem().setup_seconds.iter().map(|(_, v)| v).sum();
-    let setup: serde_json::Map<String, serde_json::Value> = solver
-        .problem()
-        .setup_seconds
-        .iter()
-        .map(|(k, v)| (k.to_string(), serde_json::json!(v)))
-        .collect();
-    let (problem, rows) = solver.into_parts();
-    drop(rows);
-
-    let render_start = Instant::now();
-    let (chosen, image) = render_chosen(
-        pass_choice,
-        process_start,
-        &problem,
-        &radiance,
-        &settings,
-        args.gather_rays,
-    );
-    let render_seconds = render_start.elapsed().as_secs_f64();
-    let exposure = match args.exposure {
+/// Exposure of the PNG and glTF colours: `--exposure`, or the power of √2 that shows an
+/// image nearly black or white at 1 (said on stderr).
+fn exposure_for(args: &RenderArgs, image: &Image) -> f64 {
+    match args.exposure {
         Some(e) => e,
         None => {
             let stops =
-                render::image::auto_exposure_stops(render::image::luminance(&image)).unwrap_or(0.0);
+                render::image::auto_exposure_stops(render::image::luminance(image)).unwrap_or(0.0);
             if stops != 0.0 && !args.quiet && !args.json {
                 let (look, lights) = if stops > 0.0 {
                     ("black", "weak")
@@ -518,114 +612,23 @@ fn render(args: &RenderArgs) -> Result<()> {
             }
             stops.exp2()
         }
-    };
-    image.save(&args.out, exposure)?;
+    }
+}
 
-    let error = match &reference {
-        Some(r) => {
-            let mask = render::error_mask(
-                &problem.scene,
-                &settings.camera,
-                settings.width,
-                settings.height,
-            );
-            Some(render::relative_rms(&image, r, &mask)?)
-        }
-        None => None,
-    };
-    if let Some(p) = &args.elements_csv {
-        let mut w = create(p)?;
-        writeln!(w, "patch,area,cx,cy,cz,r,g,b")?;
-        for (e, b) in problem.mesh.elements.iter().zip(&radiance) {
-            let patch = problem.mesh.patch(e.patch);
-            let c = e.centroid;
-            writeln!(
-                w,
-                "{},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e}",
-                patch.source_face, e.area, c.x, c.y, c.z, b.x, b.y, b.z
-            )?;
-        }
-        w.flush()?;
+/// `--elements-csv`: one row per element (patch, area, centroid, radiance).
+fn write_elements_csv(path: &PathBuf, problem: &Problem, radiance: &[Rgb]) -> Result<()> {
+    let mut w = create(path)?;
+    writeln!(w, "patch,area,cx,cy,cz,r,g,b")?;
+    for (e, b) in problem.mesh.elements.iter().zip(radiance) {
+        let patch = problem.mesh.patch(e.patch);
+        let c = e.centroid;
+        writeln!(
+            w,
+            "{},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e}",
+            patch.source_face, e.area, c.x, c.y, c.z, b.x, b.y, b.z
+        )?;
     }
-    let summary = serde_json::json!({
-        "elements": problem.mesh.elements.len(),
-        "patches": problem.mesh.patches.len(),
-        "faces": problem.scene.faces.len(),
-        "element_size": problem.mesh.element_size,
-        "patch_size": problem.mesh.patch_size,
-        "camera": [
-            settings.camera.eye.x, settings.camera.eye.y, settings.camera.eye.z,
-            settings.camera.target.x, settings.camera.target.y, settings.camera.target.z,
-            settings.camera.vfov_deg
-        ],
-        "vertices": problem.mesh.vertices.len(),
-        "shots": steps,
-        "solver": name,
-        "solver_auto": auto_reason,
-        "solver_report": report,
-        "matrix_bytes": matrix_bytes,
-        "load_seconds": load_seconds,
-        "setup_seconds": setup,
-        "solve_seconds": solve_seconds,
-        "pass": chosen.pass.name(),
-        "pass_estimate_seconds": chosen.estimate,
-        "pass_work": chosen.work.map(|(prep, pixels)| serde_json::json!({"light_form_factors": prep, "light_evaluations": pixels})),
-        "time_budget": chosen.budget,
-        "render_seconds": render_seconds,
-        "exposure": exposure,
-        "total_seconds": process_start.elapsed().as_secs_f64(),
-        "unshot_fraction": residual,
-        "error": error,
-        "method": method.name(),
-        "rasteriser": adapter,
-        // Mirrors and glass traced by the eye pass (render::specular); caustics not included.
-        "specular": problem.scene.has_specular(),
-    });
-    if args.json {
-        println!("{summary}");
-    } else if !args.quiet {
-        eprintln!(
-            "{} elements, {} shots, unshot {:.2e}, solve {:.3} s, render {:.3} s{}; wrote {}",
-            problem.mesh.elements.len(),
-            steps,
-            residual,
-            solve_seconds,
-            render_seconds,
-            error
-                .map(|e| format!(", image error {:.2} %", e * 100.0))
-                .unwrap_or_default(),
-            args.out.display()
-        );
-        if !report.is_empty() {
-            eprintln!("{name}: {report}");
-        }
-        if let Some(total) = args.seconds {
-            eprintln!(
-                "--seconds {total}: load and mesh {:.1} s, solve {:.1} s (stopped at {} with unshot {:.2e}), render {:.1} s",
-                solve_start.duration_since(process_start).as_secs_f64() + setup_total,
-                solve_seconds - setup_total,
-                if stop.max_seconds.is_some_and(|m| m <= 0.0) {
-                    "once loading and meshing had used the time".to_string()
-                } else {
-                    format!("{steps} steps")
-                },
-                residual,
-                render_seconds
-            );
-        }
-        if let Some(line) = chosen.describe() {
-            eprintln!("{line}");
-        }
-        if problem.scene.has_specular() {
-            eprintln!(
-                "mirrors and glass traced by the eye pass onto the diffuse solution; light they \
-                 throw onto diffuse surfaces (caustics) is not included (docs/SPECULAR.md)"
-            );
-        }
-    }
-    if let Some(p) = &args.export_gltf {
-        super::export::export_gltf(&problem, &radiance, p, exposure, args.quiet)?;
-    }
+    w.flush()?;
     Ok(())
 }
 

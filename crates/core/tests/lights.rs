@@ -212,10 +212,7 @@ fn a_light_edit_converges_to_a_fresh_solve() {
     converge(&mut edited);
     let mut fresh = ProgressiveSolver::new(make(4e5), config).expect("solver");
     converge(&mut fresh);
-    let (a, b) = (
-        edited.radiosity().to_vec(),
-        fresh.radiosity().to_vec(),
-    );
+    let (a, b) = (edited.radiosity().to_vec(), fresh.radiosity().to_vec());
     for (a, b) in a.iter().zip(&b) {
         assert!(
             (*a - *b).abs().max_element() < 1e-6 * b.max_element().max(1.0),

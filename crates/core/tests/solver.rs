@@ -183,9 +183,9 @@ fn cornell_solver(seed: u64) -> ProgressiveSolver {
         patch_size: Some(120.0),
         formfactor: FormFactorConfig {
             params: nusselt_core::formfactor::FormFactorParams {
-            seed,
-            ..Default::default()
-        },
+                seed,
+                ..Default::default()
+            },
             ..Default::default()
         },
         ..Default::default()

@@ -6,8 +6,8 @@ use std::sync::atomic::AtomicBool;
 use nusselt_core::formfactor::FormFactorMethod;
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{
-    FormFactorConfig,
-    Problem, Solver, SolverConfig, SolverError, SolverKind, StopCriteria, run_solver,
+    FormFactorConfig, Problem, Solver, SolverConfig, SolverError, SolverKind, StopCriteria,
+    run_solver,
 };
 
 fn furnace_problem(rho: f64) -> Problem {

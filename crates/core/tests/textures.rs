@@ -78,10 +78,7 @@ fn a_textured_wall_bleeds_the_colour_of_its_mean() {
         dir.path(),
         &format!("newmtl wall\nKd {mean} 0 {mean}"),
     ));
-    let (a, b) = (
-        textured.radiosity().to_vec(),
-        flat.radiosity().to_vec(),
-    );
+    let (a, b) = (textured.radiosity().to_vec(), flat.radiosity().to_vec());
     assert_eq!(a.len(), b.len());
     let mut floor_red = 0.0;
     for ((x, y), e) in a.iter().zip(&b).zip(&textured.mesh().elements) {

@@ -38,10 +38,10 @@ pub use gathering::{GatherMethod, GatheringSolver};
 pub use hierarchical::HierarchicalSolver;
 pub use matrix::MatrixSolver;
 pub use problem::Problem;
-pub use registry::{OptionSet, SolverKind, SolverOption, SolverRow};
-pub use run::{StepRecord, StopCriteria, run_solver, solve_to};
 pub use progressive::ProgressiveSolver;
+pub use registry::{OptionSet, SolverKind, SolverOption, SolverRow};
 pub use rows::RowCache;
+pub use run::{StepRecord, StopCriteria, run_solver, solve_to};
 
 /// Everything a solve is set up with: the mesh, how form factors are computed, the memory
 /// budget, and the options of each solver (read only by that solver; the command line

@@ -108,7 +108,9 @@ impl Problem {
     /// Refuses a light whose power would overflow ([`SolverError::PowerOverflow`]) and the
     /// GPU hemicube without a rasteriser.
     pub fn new(scene: Scene, config: SolverConfig) -> Result<Self, SolverError> {
-        if config.formfactor.method == FormFactorMethod::GpuHemicube && config.formfactor.raster.is_none() {
+        if config.formfactor.method == FormFactorMethod::GpuHemicube
+            && config.formfactor.raster.is_none()
+        {
             return Err(SolverError::NoRaster);
         }
         check_mesh_budget(&scene, &config)?;

@@ -37,9 +37,7 @@ use crate::scene::{MaterialId, Rgb, Scene};
 use super::ambient::RegionalAmbient;
 use super::problem::Problem;
 use super::rows::RowCache;
-use super::{
-    ShotRecord, SolverConfig, SolverError, StopCriteria, channel_sum, run_solver,
-};
+use super::{ShotRecord, SolverConfig, SolverError, StopCriteria, channel_sum, run_solver};
 
 mod carry;
 mod display;
@@ -163,7 +161,9 @@ impl ProgressiveSolver {
     /// Switches the form-factor method (clears cached rows, restarts from dark). Refused
     /// (nothing changes) for `gpu-hemicube` without a rasteriser ([`set_raster`](Self::set_raster)).
     pub fn set_method(&mut self, method: FormFactorMethod) -> Result<(), SolverError> {
-        if method == FormFactorMethod::GpuHemicube && self.problem.config.formfactor.raster.is_none() {
+        if method == FormFactorMethod::GpuHemicube
+            && self.problem.config.formfactor.raster.is_none()
+        {
             return Err(SolverError::NoRaster);
         }
         self.problem.config.formfactor.method = method;

@@ -351,12 +351,22 @@ mod tests {
         let err = SolverKind::Shooting
             .refuse_unread(OptionSet::of(&[SolverOption::Omega]))
             .unwrap_err();
-        assert!(err.contains("--omega is a setting of --solver sor"), "{err}");
+        assert!(
+            err.contains("--omega is a setting of --solver sor"),
+            "{err}"
+        );
         assert!(
             SolverKind::Sor(None)
-                .refuse_unread(OptionSet::of(&[SolverOption::Omega, SolverOption::FormFactor]))
+                .refuse_unread(OptionSet::of(&[
+                    SolverOption::Omega,
+                    SolverOption::FormFactor
+                ]))
                 .is_ok()
         );
-        assert!(SolverKind::Wavelet.refuse_unread(OptionSet::default()).is_ok());
+        assert!(
+            SolverKind::Wavelet
+                .refuse_unread(OptionSet::default())
+                .is_ok()
+        );
     }
 }

@@ -107,7 +107,13 @@ impl RowCache {
         }
         let mut out = vec![0f32; problem.mesh.elements.len()];
         let ctx = problem.row_context();
-        if !formfactor::compute_row(problem.config.formfactor.method, &ctx, shooter, &mut out, cancel) {
+        if !formfactor::compute_row(
+            problem.config.formfactor.method,
+            &ctx,
+            shooter,
+            &mut out,
+            cancel,
+        ) {
             return None;
         }
         conserve_energy(problem, shooter, &mut out);

@@ -9,8 +9,8 @@
 //! nothing varies any more (a light dimmed) are coarsened a level on the same passes.
 
 use nusselt_core::mesh::Mesh;
-use nusselt_core::solver::refine::next_levels;
 use nusselt_core::solver::Problem;
+use nusselt_core::solver::refine::next_levels;
 
 use super::Event;
 use super::worker::Worker;

@@ -197,7 +197,11 @@ impl Worker {
         let (Some(work), Some(solver)) = (self.matrix_work.as_mut(), &self.solver) else {
             return;
         };
-        let first = hemicube::teaching_patch(solver.problem(), None, solver.shooting().and_then(|s| s.last_shooter()));
+        let first = hemicube::teaching_patch(
+            solver.problem(),
+            None,
+            solver.shooting().and_then(|s| s.last_shooter()),
+        );
         if work.step(solver.problem(), first, &self.cancel) {
             self.dirty = true;
         }
@@ -223,7 +227,11 @@ impl Worker {
                 }
             }
         }
-        let shooter = hemicube::teaching_patch(solver.problem(), None, solver.shooting().and_then(|s| s.last_shooter()));
+        let shooter = hemicube::teaching_patch(
+            solver.problem(),
+            None,
+            solver.shooting().and_then(|s| s.last_shooter()),
+        );
         let done = work.rows_done();
         let due = match self.matrix_published {
             None => true,

@@ -1,8 +1,8 @@
 //! Tests of hierarchical and wavelet radiosity.
 
-use crate::solver::HierarchicalOptions;
 use super::*;
 use crate::scene::{LoadOptions, Scene};
+use crate::solver::HierarchicalOptions;
 use crate::solver::SolverConfig;
 use glam::DVec3;
 
