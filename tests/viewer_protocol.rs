@@ -221,7 +221,7 @@ fn against_fresh_solve(converged: &Snapshot, scene: Scene, stop: f64) -> (f64, P
     );
     let fresh_corners = converged
         .geometry
-        .expand(&fresh.mesh().vertex_values(&fresh.radiosity().to_vec()));
+        .expand(&fresh.mesh().vertex_values(fresh.radiosity()));
     let rel = rel_l2(&converged.radiance, &fresh_corners, &converged.geometry);
     (rel, fresh)
 }
@@ -479,7 +479,7 @@ fn a_surface_made_a_light_and_back_converges_to_the_original() {
     );
     let want = done
         .geometry
-        .expand(&fresh.mesh().vertex_values(&fresh.radiosity().to_vec()));
+        .expand(&fresh.mesh().vertex_values(fresh.radiosity()));
     let rel = rel_l2(&done.radiance, &want, &done.geometry);
     eprintln!(
         "light and back: {} shots; vs fresh {rel:.2e}",

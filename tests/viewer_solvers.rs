@@ -156,7 +156,7 @@ fn gauss_seidel_over_the_thread_converges_to_the_shooting_answer() {
     assert_eq!(direct.mesh().elements.len(), done.geometry.elements);
     let want = done
         .geometry
-        .expand(&direct.mesh().vertex_values(&direct.radiosity().to_vec()));
+        .expand(&direct.mesh().vertex_values(direct.radiosity()));
     let rel = rel_l2(&done.radiance, &want, &done.geometry);
     let rho_max = done
         .materials
@@ -324,12 +324,9 @@ fn multilevel_over_the_thread_matches_a_direct_run(kind: SolverKind) {
         &mut |_, _| {},
     );
     assert_eq!(direct.steps(), done.stats.steps);
-    let want = done.geometry.expand(
-        &direct
-            .problem()
-            .mesh
-            .vertex_values(&direct.radiosity().to_vec()),
-    );
+    let want = done
+        .geometry
+        .expand(&direct.problem().mesh.vertex_values(direct.radiosity()));
     let rel = rel_l2(&done.radiance, &want, &done.geometry);
     assert!(rel < 1e-5, "thread and direct run differ by {rel}");
 }

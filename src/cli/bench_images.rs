@@ -157,7 +157,7 @@ pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
             ));
             let none = rec.error(&render_elements(
                 shooting.problem(),
-                &shooting.radiosity().to_vec(),
+                shooting.radiosity(),
                 &bvh,
                 4,
             ));

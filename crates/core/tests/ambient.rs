@@ -82,7 +82,7 @@ fn the_unlit_room_is_not_shown_lit_by_light_that_cannot_reach_it() {
     s.run(&mid, &never, &mut |_| {});
     let unshot = s.unshot_fraction();
     let regional = right_room_mean(&s, &s.display_radiance());
-    let plain = right_room_mean(&s, &s.radiosity().to_vec());
+    let plain = right_room_mean(&s, s.radiosity());
     let global: Vec<Rgb> = {
         let a = s.ambient();
         let rho = s.problem().element_reflectance();

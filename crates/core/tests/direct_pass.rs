@@ -51,11 +51,8 @@ fn pixels_at(s: &ProgressiveSolver, x: f64, z: f64) -> Vec<f64> {
         seed: 3,
         edge_spp: 0,
     };
-    let image = nusselt_core::render::direct::render_solution(
-        s.problem(),
-        &s.radiosity().to_vec(),
-        &settings,
-    );
+    let image =
+        nusselt_core::render::direct::render_solution(s.problem(), s.radiosity(), &settings);
     image.pixels.iter().map(|p| p.x).collect()
 }
 
@@ -121,11 +118,8 @@ fn pixels_of_a_penumbra_match_the_mean_of_the_closed_form() {
         seed: 5,
         edge_spp: 0,
     };
-    let image = nusselt_core::render::direct::render_solution(
-        s.problem(),
-        &s.radiosity().to_vec(),
-        &settings,
-    );
+    let image =
+        nusselt_core::render::direct::render_solution(s.problem(), s.radiosity(), &settings);
     let floor = |sx: f64, sy: f64| {
         let d = camera.ray_dir(sx, sy, w, h);
         let t = camera.eye.y / -d.y;

@@ -54,7 +54,7 @@ fn the_cornell_box_round_trips_through_gltf() {
         &AtomicBool::new(false),
         &mut |_| {},
     );
-    let baked = BakedMesh::from_solution(solver.problem(), &solver.radiosity().to_vec());
+    let baked = BakedMesh::from_solution(solver.problem(), solver.radiosity());
     let input = GltfInput {
         mesh: &baked,
         materials: &scene.materials,

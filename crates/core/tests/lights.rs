@@ -314,7 +314,7 @@ fn sky_and_sun_agree_with_the_path_tracer() {
     converge(&mut s);
     let image = nusselt_core::render::Pass::Direct.render(
         s.problem(),
-        &s.radiosity().to_vec(),
+        s.radiosity(),
         &nusselt_core::render::RenderSettings { spp: 4, ..settings },
         16,
     );

@@ -118,9 +118,7 @@ fn the_image_shows_the_texel_under_the_computed_light() {
         edge_spp: 0,
     };
     for pass in [Pass::Vertex, Pass::Direct, Pass::Gather] {
-        let img = |s: &ProgressiveSolver| {
-            pass.render(s.problem(), &s.radiosity().to_vec(), &settings, 16)
-        };
+        let img = |s: &ProgressiveSolver| pass.render(s.problem(), s.radiosity(), &settings, 16);
         let (t, f) = (img(&textured), img(&flat));
         let (mut white, mut black, mut sum_t, mut sum_f) = (0.0, 0.0f64, 0.0, 0.0);
         for j in 0..64u32 {
@@ -256,9 +254,7 @@ fn a_step_between_elements_shows_as_the_texture_has_it() {
         edge_spp: 0,
     };
     for pass in [Pass::Vertex, Pass::Direct, Pass::Gather] {
-        let img = |s: &ProgressiveSolver| {
-            pass.render(s.problem(), &s.radiosity().to_vec(), &settings, 64)
-        };
+        let img = |s: &ProgressiveSolver| pass.render(s.problem(), s.radiosity(), &settings, 64);
         let (t, f) = (img(&textured), img(&flat));
         let mut worst = 0.0f64;
         for j in [12u32, 32, 52] {
@@ -389,7 +385,7 @@ fn the_holes_show_what_is_behind_the_sheet() {
         edge_spp: 0,
     };
     for pass in [Pass::Vertex, Pass::Direct, Pass::Gather] {
-        let img = pass.render(s.problem(), &s.radiosity().to_vec(), &settings, 16);
+        let img = pass.render(s.problem(), s.radiosity(), &settings, 16);
         let lit = (0..64u32)
             .flat_map(|j| (0..64u32).map(move |i| (i, j)))
             .filter(|&(i, j)| img.get(i, j).x > 1e-6)

@@ -195,7 +195,7 @@ pub(crate) fn pixel_samples(x: u32, y: u32, spp: u32, seed: u64, mut f: impl FnM
 /// let mut solver = ProgressiveSolver::new(scene, config)?;
 /// solver.shoot(&AtomicBool::new(false)).expect("the light shoots");
 ///
-/// let vertex = solver.mesh().vertex_values(&solver.radiosity().to_vec());
+/// let vertex = solver.mesh().vertex_values(solver.radiosity());
 /// let bvh = render::display_bvh(solver.scene(), solver.mesh());
 /// let view = SolutionView {
 ///     scene: solver.scene(),

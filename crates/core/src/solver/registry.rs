@@ -96,8 +96,12 @@ pub struct SolverRow {
     /// budget), before any work.
     pub check: fn(SolverKind, &Problem) -> Result<(), SolverError>,
     /// The solver on `problem`, starting dark, reusing the rows when it stores rows.
-    pub build: fn(SolverKind, Problem, RowCache) -> Result<Box<dyn Solver>, SolverError>,
+    pub build: BuildFn,
 }
+
+/// How a row builds its solver: the kind (with its payload), the problem and the rows to
+/// reuse.
+pub type BuildFn = fn(SolverKind, Problem, RowCache) -> Result<Box<dyn Solver>, SolverError>;
 
 /// Generates [`SolverKind`] and the matches over it from the rows, so that a new solver is
 /// one row (a variant, possibly with a payload, and its [`SolverRow`]).
