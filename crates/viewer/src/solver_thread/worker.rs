@@ -19,6 +19,9 @@ use super::ray_input::RayInput;
 use super::teach::Teaching;
 use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
 
+/// The solver thread's state. The solve's own state is here; the teaching views'
+/// ([`Teaching`]), the ray-traced view's input ([`RayInput`]) and what was published when
+/// ([`Published`]) are grouped in their own structs.
 pub(super) struct Worker {
     pub(super) rx: Receiver<Command>,
     pub(super) events: SyncSender<Event>,
