@@ -24,11 +24,12 @@ use nusselt_core::formfactor::hemicube::{
     DeltaTable, HemicubeView, ItemBufferRaster, NONE, RasterError, SKIP,
 };
 
-/// The WGSL source (validated by `tests/viewer_shaders.rs` with naga).
+mod setup;
 mod targets;
 
 use targets::{Chunk, Geometry, Target, face_rows};
 
+/// The WGSL source (validated by `tests/viewer_shaders.rs` with naga).
 pub const SHADER_SOURCE: &str = include_str!("../../../shaders/hemicube.wgsl");
 
 /// Uniform stride per face (wgpu's minimum dynamic-offset alignment is at most 256).
@@ -101,34 +102,7 @@ impl GpuHemicube {
     /// item-buffer test): most likely the depth remap `2z − 1` of a GL without clip control
     /// rounds the depths `near/D` to the cleared 0, so every polygon fails the depth test.
     pub fn new() -> Result<Self, GpuError> {
-        let from_env = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
-        let allowed = from_env.backends;
-        let options = wgpu::RequestAdapterOptions {
-            power_preference: wgpu::PowerPreference::HighPerformance,
-            force_fallback_adapter: false,
-            compatible_surface: None,
-            apply_limit_buckets: false,
-        };
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
-            backends: allowed - wgpu::Backends::GL,
-            ..from_env
-        });
-        let adapter = match pollster::block_on(instance.request_adapter(&options)) {
-            Ok(adapter) => adapter,
-            Err(e) => {
-                // Say so when OpenGL is what there is.
-                if allowed.contains(wgpu::Backends::GL) {
-                    let gl = wgpu::Instance::new(wgpu::InstanceDescriptor {
-                        backends: wgpu::Backends::GL,
-                        ..wgpu::InstanceDescriptor::new_without_display_handle_from_env()
-                    });
-                    if let Ok(a) = pollster::block_on(gl.request_adapter(&options)) {
-                        return Err(GpuError::OpenGl(a.get_info().name));
-                    }
-                }
-                return Err(GpuError::NoAdapter(e.to_string()));
-            }
-        };
+        let adapter = setup::request_adapter()?;
         let info = adapter.get_info();
         let name = format!("{} ({:?})", info.name, info.backend);
         if !adapter
@@ -147,95 +121,8 @@ impl GpuHemicube {
             trace: wgpu::Trace::Off,
         }))
         .map_err(|e| GpuError::Device(e.to_string()))?;
-        let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("nusselt hemicube"),
-            source: wgpu::ShaderSource::Wgsl(SHADER_SOURCE.into()),
-        });
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("nusselt hemicube"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: true,
-                        min_binding_size: std::num::NonZeroU64::new(
-                            std::mem::size_of::<FaceUniform>() as u64,
-                        ),
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::VERTEX,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: true },
-                        has_dynamic_offset: false,
-                        min_binding_size: std::num::NonZeroU64::new(4),
-                    },
-                    count: None,
-                },
-            ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("nusselt hemicube"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let attributes = [
-            wgpu::VertexAttribute {
-                format: wgpu::VertexFormat::Float32x3,
-                offset: 0,
-                shader_location: 0,
-            },
-            wgpu::VertexAttribute {
-                format: wgpu::VertexFormat::Uint32,
-                offset: 12,
-                shader_location: 1,
-            },
-        ];
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("nusselt hemicube"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: 16,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &attributes,
-                })],
-            },
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: wgpu::TextureFormat::R32Uint,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: wgpu::TextureFormat::Depth32Float,
-                depth_write_enabled: Some(true),
-                // Depth is near/D: the nearer polygon has the greater value; ties keep the
-                // first drawn, like the CPU's strict test.
-                depth_compare: Some(wgpu::CompareFunction::Greater),
-                stencil: wgpu::StencilState::default(),
-                bias: wgpu::DepthBiasState::default(),
-            }),
-            multisample: wgpu::MultisampleState::default(),
-            multiview_mask: None,
-            cache: None,
-        });
+        let layout = setup::bind_group_layout(&device);
+        let pipeline = setup::render_pipeline(&device, &layout);
         let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("nusselt hemicube faces"),
             size: 5 * FACE_STRIDE,
@@ -274,6 +161,32 @@ impl GpuHemicube {
             .state
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let centre = self.prepare(&mut state, key, polygons, res, ids)?;
+        self.write_faces(view, centre);
+        let state = &*state;
+        let target = state.target.as_ref().expect("prepared");
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("nusselt hemicube"),
+            });
+        self.draw_faces(&mut encoder, state, view, res, ids);
+        copy_to_readback(&mut encoder, target, res);
+        self.queue.submit(Some(encoder.finish()));
+        self.read_back(target, res)
+    }
+
+    /// Makes `state` ready to draw: the geometry for `key` (uploaded when it changed), the
+    /// atlas for `res` and `ids` in the storage buffer; checks `ids` against the polygons
+    /// and `res` against the GPU. Returns the geometry's centre.
+    fn prepare(
+        &self,
+        state: &mut State,
+        key: u64,
+        polygons: &dyn Fn() -> Vec<Vec<DVec3>>,
+        res: u32,
+        ids: &[u32],
+    ) -> Result<DVec3, RasterError> {
         if state.geometry.as_ref().is_none_or(|g| g.key != key) {
             state.geometry = Some(self.upload_geometry(key, &polygons()));
             state.ids = None;
@@ -303,40 +216,49 @@ impl GpuHemicube {
             .as_ref()
             .is_none_or(|(_, _, size)| *size < id_bytes)
         {
-            let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("nusselt hemicube ids"),
-                size: id_bytes,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("nusselt hemicube"),
-                layout: &self.layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: &self.uniforms,
-                            offset: 0,
-                            size: std::num::NonZeroU64::new(
-                                std::mem::size_of::<FaceUniform>() as u64
-                            ),
-                        }),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: buffer.as_entire_binding(),
-                    },
-                ],
-            });
+            let (buffer, bind_group) = self.id_binding(id_bytes);
             state.ids = Some((buffer, bind_group, id_bytes));
         }
-        let (id_buffer, bind_group, _) = state.ids.as_ref().expect("just set");
+        let (id_buffer, _, _) = state.ids.as_ref().expect("just set");
         if !ids.is_empty() {
             self.queue
                 .write_buffer(id_buffer, 0, bytemuck::cast_slice(ids));
         }
-        // Face transforms, relative to the geometry's centre.
+        Ok(centre)
+    }
+
+    /// A storage buffer for `size` bytes of ids, and the bind group that reads it with the
+    /// face transforms.
+    fn id_binding(&self, size: u64) -> (wgpu::Buffer, wgpu::BindGroup) {
+        let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("nusselt hemicube ids"),
+            size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("nusselt hemicube"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &self.uniforms,
+                        offset: 0,
+                        size: std::num::NonZeroU64::new(std::mem::size_of::<FaceUniform>() as u64),
+                    }),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: buffer.as_entire_binding(),
+                },
+            ],
+        });
+        (buffer, bind_group)
+    }
+
+    /// Uploads the five face transforms of `view`, relative to the geometry's `centre`.
+    fn write_faces(&self, view: &HemicubeView, centre: DVec3) {
         let o = view.origin - centre;
         let v4 = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
         let mut faces = vec![0u8; (5 * FACE_STRIDE) as usize];
@@ -353,102 +275,74 @@ impl GpuHemicube {
                 .copy_from_slice(bytemuck::bytes_of(&u));
         }
         self.queue.write_buffer(&self.uniforms, 0, &faces);
+    }
 
-        let target = state.target.as_ref().expect("just set");
+    /// One render pass drawing the five faces into their viewports of the atlas (cleared
+    /// to [`NONE`]), each with the chunks that may show on it.
+    fn draw_faces(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        state: &State,
+        view: &HemicubeView,
+        res: u32,
+        ids: &[u32],
+    ) {
+        let target = state.target.as_ref().expect("prepared");
+        let geometry = state.geometry.as_ref().expect("prepared");
+        let (_, bind_group, _) = state.ids.as_ref().expect("prepared");
         let color_view = target
             .ids
             .create_view(&wgpu::TextureViewDescriptor::default());
         let depth_view = target
             .depth
             .create_view(&wgpu::TextureViewDescriptor::default());
-        let mut encoder = self
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("nusselt hemicube"),
-            });
-        {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("nusselt hemicube"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &color_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: NONE as f64,
-                            g: 0.0,
-                            b: 0.0,
-                            a: 0.0,
-                        }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(0.0),
-                        store: wgpu::StoreOp::Discard,
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("nusselt hemicube"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &color_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color {
+                        r: NONE as f64,
+                        g: 0.0,
+                        b: 0.0,
+                        a: 0.0,
                     }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            let geometry = state.geometry.as_ref().expect("set above");
-            pass.set_vertex_buffer(0, geometry.vertices.slice(..));
-            // Chunks with something to draw (not all SKIP), in order.
-            let live: Vec<&Chunk> = geometry
-                .chunks
-                .iter()
-                .filter(|c| ids[c.polygons.clone()].iter().any(|id| *id != SKIP))
-                .collect();
-            for f in 0..5u32 {
-                let (y, rows) = face_rows(f, res);
-                pass.set_viewport(0.0, y as f32, res as f32, rows as f32, 0.0, 1.0);
-                pass.set_scissor_rect(0, y, res, rows);
-                pass.set_bind_group(0, bind_group, &[(f as u64 * FACE_STRIDE) as u32]);
-                // Consecutive visible chunks merge into one draw (order is kept, so depth
-                // ties resolve as on the CPU).
-                let mut run: Option<std::ops::Range<u32>> = None;
-                for c in live.iter().filter(|c| c.may_show_on(f as usize, view)) {
-                    run = match run {
-                        Some(r) if r.end == c.vertices.start => Some(r.start..c.vertices.end),
-                        Some(r) => {
-                            pass.draw(r, 0..1);
-                            Some(c.vertices.clone())
-                        }
-                        None => Some(c.vertices.clone()),
-                    };
-                }
-                if let Some(r) = run {
-                    pass.draw(r, 0..1);
-                }
-            }
-        }
-        encoder.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo {
-                texture: &target.ids,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            wgpu::TexelCopyBufferInfo {
-                buffer: &target.readback,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(target.padded_row),
-                    rows_per_image: Some(3 * res),
+                    store: wgpu::StoreOp::Store,
                 },
-            },
-            wgpu::Extent3d {
-                width: res,
-                height: 3 * res,
-                depth_or_array_layers: 1,
-            },
-        );
-        self.queue.submit(Some(encoder.finish()));
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(0.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_vertex_buffer(0, geometry.vertices.slice(..));
+        // Chunks with something to draw (not all SKIP), in order.
+        let live: Vec<&Chunk> = geometry
+            .chunks
+            .iter()
+            .filter(|c| ids[c.polygons.clone()].iter().any(|id| *id != SKIP))
+            .collect();
+        for f in 0..5u32 {
+            let (y, rows) = face_rows(f, res);
+            pass.set_viewport(0.0, y as f32, res as f32, rows as f32, 0.0, 1.0);
+            pass.set_scissor_rect(0, y, res, rows);
+            pass.set_bind_group(0, bind_group, &[(f as u64 * FACE_STRIDE) as u32]);
+            draw_chunks(&mut pass, &live, f, view);
+        }
+    }
+
+    /// Waits for the copied atlas and reads it back, row by row without the padding.
+    fn read_back(&self, target: &Target, res: u32) -> Result<Vec<u32>, RasterError> {
         let (sender, receiver) = std::sync::mpsc::sync_channel(1);
         target
             .readback
@@ -482,6 +376,50 @@ impl GpuHemicube {
         target.readback.unmap();
         Ok(out)
     }
+}
+
+/// Draws the `live` chunks that may show on face `f`; consecutive ones merge into one draw
+/// (order is kept, so depth ties resolve as on the CPU).
+fn draw_chunks(pass: &mut wgpu::RenderPass<'_>, live: &[&Chunk], f: u32, view: &HemicubeView) {
+    let mut run: Option<std::ops::Range<u32>> = None;
+    for c in live.iter().filter(|c| c.may_show_on(f as usize, view)) {
+        run = match run {
+            Some(r) if r.end == c.vertices.start => Some(r.start..c.vertices.end),
+            Some(r) => {
+                pass.draw(r, 0..1);
+                Some(c.vertices.clone())
+            }
+            None => Some(c.vertices.clone()),
+        };
+    }
+    if let Some(r) = run {
+        pass.draw(r, 0..1);
+    }
+}
+
+/// Copies the drawn atlas into the read-back buffer (rows padded as wgpu requires).
+fn copy_to_readback(encoder: &mut wgpu::CommandEncoder, target: &Target, res: u32) {
+    encoder.copy_texture_to_buffer(
+        wgpu::TexelCopyTextureInfo {
+            texture: &target.ids,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        wgpu::TexelCopyBufferInfo {
+            buffer: &target.readback,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(target.padded_row),
+                rows_per_image: Some(3 * res),
+            },
+        },
+        wgpu::Extent3d {
+            width: res,
+            height: 3 * res,
+            depth_or_array_layers: 1,
+        },
+    );
 }
 
 impl ItemBufferRaster for GpuHemicube {

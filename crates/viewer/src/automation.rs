@@ -232,28 +232,7 @@ impl ViewerApp {
         }
         match self.shot_state {
             ShotState::Waiting => {
-                let Some(s) = &self.snapshot else { return };
-                let edits_done =
-                    self.auto.edits.is_empty() || (self.edits_sent && self.edit_latency.is_empty());
-                let ready = edits_done
-                    && super::teach::ready(self.teach.as_ref(), s)
-                    && self.ray_ready(super::ray_view::SCREENSHOT_SPP)
-                    && match plan.when {
-                        ScreenshotWhen::Shots(n) => {
-                            s.stats.steps >= n || s.stats.converged || s.stats.limit_reached
-                        }
-                        ScreenshotWhen::Seconds(t) => since_open.as_secs_f64() >= t,
-                        // The side-by-side teaching views run their own solves (the
-                        // viewer's stays paused): ready is when they are done.
-                        ScreenshotWhen::Converged => {
-                            s.stats.converged
-                                || self
-                                    .teach
-                                    .as_ref()
-                                    .is_some_and(|t| t.view.replaces_viewport())
-                        }
-                    };
-                if ready {
+                if self.screenshot_ready(&plan, since_open) {
                     self.shot_state = ShotState::Ready(0);
                 }
             }
@@ -269,49 +248,82 @@ impl ViewerApp {
             }
             ShotState::Requested(at) => {
                 if let Some(image) = self.screenshot_image.take() {
-                    let saved = export::write_color_image(&plan.path, &image);
-                    if let Some(p) = self.auto.viewport_png.clone() {
-                        let crop = image.region(&self.viewport_rect, Some(ctx.pixels_per_point()));
-                        if let Err(e) = export::write_color_image(&p, &crop) {
-                            self.fail(ctx, e.to_string());
-                            return;
-                        }
-                    }
-                    if let (Some(p), Some(s)) =
-                        (self.auto.export_ply.clone(), self.snapshot.clone())
-                    {
-                        let bytes = export::ply_bytes(
-                            &s,
-                            self.panel.view.ambient,
-                            self.panel.view.exposure(),
-                        );
-                        if let Err(e) = export::atomic_write(&p, &bytes) {
-                            self.fail(ctx, e.to_string());
-                            return;
-                        }
-                    }
-                    match saved {
-                        Ok(()) => {
-                            let s = self.snapshot.as_ref();
-                            eprintln!(
-                                "saved {} ({}x{} px, {} {} steps, {} elements)",
-                                plan.path.display(),
-                                image.size[0],
-                                image.size[1],
-                                s.map_or("no", |s| s.stats.solver),
-                                s.map_or(0, |s| s.stats.steps),
-                                s.map_or(0, |s| s.stats.elements)
-                            );
-                            self.shot_state = ShotState::Done;
-                            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
-                        }
-                        Err(e) => self.fail(ctx, e.to_string()),
-                    }
+                    self.save_screenshot(ctx, &plan, &image);
                 } else if at.elapsed() > Duration::from_secs(20) {
                     self.fail(ctx, "the screenshot never arrived".into());
                 }
             }
             ShotState::Done => {}
+        }
+    }
+
+    /// Whether the scripted screenshot may be taken: the edits applied, the teaching and
+    /// ray-traced views ready, and the plan's condition met.
+    fn screenshot_ready(&self, plan: &ScreenshotPlan, since_open: Duration) -> bool {
+        let Some(s) = &self.snapshot else {
+            return false;
+        };
+        let edits_done =
+            self.auto.edits.is_empty() || (self.edits_sent && self.edit_latency.is_empty());
+        edits_done
+            && super::teach::ready(self.teach.as_ref(), s)
+            && self.ray_ready(super::ray_view::SCREENSHOT_SPP)
+            && match plan.when {
+                ScreenshotWhen::Shots(n) => {
+                    s.stats.steps >= n || s.stats.converged || s.stats.limit_reached
+                }
+                ScreenshotWhen::Seconds(t) => since_open.as_secs_f64() >= t,
+                // The side-by-side teaching views run their own solves (the viewer's stays
+                // paused): ready is when they are done.
+                ScreenshotWhen::Converged => {
+                    s.stats.converged
+                        || self
+                            .teach
+                            .as_ref()
+                            .is_some_and(|t| t.view.replaces_viewport())
+                }
+            }
+    }
+
+    /// Writes the captured window (and the viewport crop and the PLY when asked for), then
+    /// closes the viewer; an error fails the run.
+    fn save_screenshot(
+        &mut self,
+        ctx: &egui::Context,
+        plan: &ScreenshotPlan,
+        image: &egui::ColorImage,
+    ) {
+        let saved = export::write_color_image(&plan.path, image);
+        if let Some(p) = self.auto.viewport_png.clone() {
+            let crop = image.region(&self.viewport_rect, Some(ctx.pixels_per_point()));
+            if let Err(e) = export::write_color_image(&p, &crop) {
+                self.fail(ctx, e.to_string());
+                return;
+            }
+        }
+        if let (Some(p), Some(s)) = (self.auto.export_ply.clone(), self.snapshot.clone()) {
+            let bytes = export::ply_bytes(&s, self.panel.view.ambient, self.panel.view.exposure());
+            if let Err(e) = export::atomic_write(&p, &bytes) {
+                self.fail(ctx, e.to_string());
+                return;
+            }
+        }
+        match saved {
+            Ok(()) => {
+                let s = self.snapshot.as_ref();
+                eprintln!(
+                    "saved {} ({}x{} px, {} {} steps, {} elements)",
+                    plan.path.display(),
+                    image.size[0],
+                    image.size[1],
+                    s.map_or("no", |s| s.stats.solver),
+                    s.map_or(0, |s| s.stats.steps),
+                    s.map_or(0, |s| s.stats.elements)
+                );
+                self.shot_state = ShotState::Done;
+                ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            }
+            Err(e) => self.fail(ctx, e.to_string()),
         }
     }
 }

@@ -239,7 +239,20 @@ fn solver_section(
             None => format!("{} (built-in)", s.scene_name),
         });
     }
-    let playing = snap.is_some_and(|s| s.stats.playing);
+    play_controls(ui, snap.is_some_and(|s| s.stats.playing), actions);
+    if let Some(s) = snap {
+        method_choice(ui, s, actions);
+        solver_choice::solver_choice(ui, state, s.solver_kind, actions);
+        element_size_controls(ui, state, s, actions);
+        adaptive_controls(ui, state, actions);
+        if let Some(e) = &state.element_size_error {
+            ui.colored_label(egui::Color32::LIGHT_RED, e);
+        }
+    }
+}
+
+/// Play or Pause, Step, Reset.
+fn play_controls(ui: &mut egui::Ui, playing: bool, actions: &mut Vec<Action>) {
     ui.horizontal(|ui| {
         if playing {
             if ui.button("Pause").clicked() {
@@ -259,80 +272,90 @@ fn solver_section(
             actions.push(Action::Solver(Command::Reset));
         }
     });
-    if let Some(s) = snap {
-        let mut method = s.method;
-        egui::ComboBox::from_label("form factors")
-            .selected_text(method.name())
-            .show_ui(ui, |ui| {
-                for m in FormFactorMethod::ALL {
-                    ui.selectable_value(&mut method, *m, m.name());
-                }
-            });
-        if method != s.method {
-            actions.push(Action::SetMethod(method));
-        }
-        solver_choice::solver_choice(ui, state, s.solver_kind, actions);
-        // Element size: a log slider (applied when released) and a validated field.
-        let diag = (s.geometry.bounds_max - s.geometry.bounds_min)
-            .length()
-            .max(1e-9);
-        let (lo, hi) = (diag / 1000.0, diag / 8.0);
-        ui.label("element size");
-        ui.horizontal(|ui| {
-            let r = ui.add(
-                egui::Slider::new(&mut state.element_size, lo..=hi)
-                    .logarithmic(true)
-                    .show_value(false),
-            );
-            if r.changed() {
-                state.element_size_text = fmt_size(state.element_size);
-            }
-            if r.drag_stopped() || (r.changed() && !r.dragged()) {
-                actions.push(Action::Remesh(state.element_size));
-            }
-            let t = ui
-                .add(egui::TextEdit::singleline(&mut state.element_size_text).desired_width(70.0));
-            if t.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter)) {
-                match state.element_size_text.trim().parse::<f64>() {
-                    Ok(x) if x.is_finite() && x > 0.0 => {
-                        state.element_size = x;
-                        state.element_size_error = None;
-                        actions.push(Action::Remesh(x));
-                    }
-                    _ => {
-                        state.element_size_error = Some(format!(
-                            "'{}' is not a positive number",
-                            state.element_size_text.trim()
-                        ))
-                    }
-                }
+}
+
+/// The form-factor method's combo box.
+fn method_choice(ui: &mut egui::Ui, s: &Snapshot, actions: &mut Vec<Action>) {
+    let mut method = s.method;
+    egui::ComboBox::from_label("form factors")
+        .selected_text(method.name())
+        .show_ui(ui, |ui| {
+            for m in FormFactorMethod::ALL {
+                ui.selectable_value(&mut method, *m, m.name());
             }
         });
-        ui.horizontal(|ui| {
-            if ui
-                .button("Refine adaptively")
-                .on_hover_text(
-                    "refine where the radiance varies across an element by more than the \
-                     tolerance, solve again, and repeat (turn on the element wireframe to \
-                     watch the mesh grow)",
-                )
-                .clicked()
-            {
-                actions.push(Action::Solver(Command::Adapt(Some(
-                    state.adaptive_tolerance,
-                ))));
-            }
-            ui.add(
-                egui::DragValue::new(&mut state.adaptive_tolerance)
-                    .range(0.02..=2.0)
-                    .speed(0.005)
-                    .prefix("tolerance "),
-            );
-        });
-        if let Some(e) = &state.element_size_error {
-            ui.colored_label(egui::Color32::LIGHT_RED, e);
-        }
+    if method != s.method {
+        actions.push(Action::SetMethod(method));
     }
+}
+
+/// Element size: a log slider (applied when released) and a validated field.
+fn element_size_controls(
+    ui: &mut egui::Ui,
+    state: &mut PanelState,
+    s: &Snapshot,
+    actions: &mut Vec<Action>,
+) {
+    let diag = (s.geometry.bounds_max - s.geometry.bounds_min)
+        .length()
+        .max(1e-9);
+    let (lo, hi) = (diag / 1000.0, diag / 8.0);
+    ui.label("element size");
+    ui.horizontal(|ui| {
+        let r = ui.add(
+            egui::Slider::new(&mut state.element_size, lo..=hi)
+                .logarithmic(true)
+                .show_value(false),
+        );
+        if r.changed() {
+            state.element_size_text = fmt_size(state.element_size);
+        }
+        if r.drag_stopped() || (r.changed() && !r.dragged()) {
+            actions.push(Action::Remesh(state.element_size));
+        }
+        let t =
+            ui.add(egui::TextEdit::singleline(&mut state.element_size_text).desired_width(70.0));
+        if t.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter)) {
+            match state.element_size_text.trim().parse::<f64>() {
+                Ok(x) if x.is_finite() && x > 0.0 => {
+                    state.element_size = x;
+                    state.element_size_error = None;
+                    actions.push(Action::Remesh(x));
+                }
+                _ => {
+                    state.element_size_error = Some(format!(
+                        "'{}' is not a positive number",
+                        state.element_size_text.trim()
+                    ))
+                }
+            }
+        }
+    });
+}
+
+/// "Refine adaptively" with its tolerance.
+fn adaptive_controls(ui: &mut egui::Ui, state: &mut PanelState, actions: &mut Vec<Action>) {
+    ui.horizontal(|ui| {
+        if ui
+            .button("Refine adaptively")
+            .on_hover_text(
+                "refine where the radiance varies across an element by more than the \
+                 tolerance, solve again, and repeat (turn on the element wireframe to \
+                 watch the mesh grow)",
+            )
+            .clicked()
+        {
+            actions.push(Action::Solver(Command::Adapt(Some(
+                state.adaptive_tolerance,
+            ))));
+        }
+        ui.add(
+            egui::DragValue::new(&mut state.adaptive_tolerance)
+                .range(0.02..=2.0)
+                .speed(0.005)
+                .prefix("tolerance "),
+        );
+    });
 }
 
 fn fmt_size(x: f64) -> String {

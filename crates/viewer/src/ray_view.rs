@@ -86,14 +86,7 @@ impl ViewerApp {
             return;
         };
         let camera = camera.to_camera();
-        // The viewport's pixels, at most MAX_SIDE on the longer side.
-        let ppp = ui.ctx().pixels_per_point();
-        let (w, h) = (rect.width() * ppp, rect.height() * ppp);
-        let scale = (MAX_SIDE as f32 / w.max(h)).min(1.0);
-        let (width, height) = (
-            ((w * scale).round() as u32).max(1),
-            ((h * scale).round() as u32).max(1),
-        );
+        let (width, height) = image_size(rect, ui.ctx().pixels_per_point());
         if !moving {
             view.job = Some((camera, width, height, input.seq));
             tracer.submit(RayJob {
@@ -113,33 +106,7 @@ impl ViewerApp {
             }
             return;
         };
-        let exposure = self.panel.view.exposure();
-        let id = (Arc::as_ptr(&image) as usize, exposure.to_bits());
-        if view.texture_of != Some(id) {
-            let pixels: Vec<egui::Color32> = image
-                .pixels
-                .iter()
-                .map(|c| {
-                    let [r, g, b] = c.as_vec3().to_array().map(|x| srgb8(x, exposure));
-                    egui::Color32::from_rgb(r, g, b)
-                })
-                .collect();
-            let img = egui::ColorImage::new([image.width as usize, image.height as usize], pixels);
-            view.texture = Some(ui.ctx().load_texture(
-                "ray-traced-view",
-                img,
-                egui::TextureOptions::LINEAR,
-            ));
-            view.texture_of = Some(id);
-        }
-        if let Some(t) = &view.texture {
-            ui.painter().image(
-                t.id(),
-                rect,
-                egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
-                egui::Color32::WHITE,
-            );
-        }
+        view.draw(ui, rect, &image, self.panel.view.exposure());
         label(
             ui,
             rect,
@@ -149,6 +116,49 @@ impl ViewerApp {
             ),
         );
     }
+}
+
+impl RayView {
+    /// Draws `image` over the viewport at `exposure` (its texture made again only when the
+    /// image or the exposure changed).
+    fn draw(&mut self, ui: &egui::Ui, rect: egui::Rect, image: &Arc<RayImage>, exposure: f32) {
+        let id = (Arc::as_ptr(image) as usize, exposure.to_bits());
+        if self.texture_of != Some(id) {
+            let pixels: Vec<egui::Color32> = image
+                .pixels
+                .iter()
+                .map(|c| {
+                    let [r, g, b] = c.as_vec3().to_array().map(|x| srgb8(x, exposure));
+                    egui::Color32::from_rgb(r, g, b)
+                })
+                .collect();
+            let img = egui::ColorImage::new([image.width as usize, image.height as usize], pixels);
+            self.texture = Some(ui.ctx().load_texture(
+                "ray-traced-view",
+                img,
+                egui::TextureOptions::LINEAR,
+            ));
+            self.texture_of = Some(id);
+        }
+        if let Some(t) = &self.texture {
+            ui.painter().image(
+                t.id(),
+                rect,
+                egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+                egui::Color32::WHITE,
+            );
+        }
+    }
+}
+
+/// The viewport's size in pixels (`ppp` per point), at most [`MAX_SIDE`] on the longer side.
+fn image_size(rect: egui::Rect, ppp: f32) -> (u32, u32) {
+    let (w, h) = (rect.width() * ppp, rect.height() * ppp);
+    let scale = (MAX_SIDE as f32 / w.max(h)).min(1.0);
+    (
+        ((w * scale).round() as u32).max(1),
+        ((h * scale).round() as u32).max(1),
+    )
 }
 
 /// What an image shows: camera, size, solution.

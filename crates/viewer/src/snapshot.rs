@@ -103,6 +103,132 @@ fn same_uv(a: [f32; 2], b: [f32; 2]) -> bool {
     tol(a[0], b[0]) && tol(a[1], b[1])
 }
 
+/// The drawn vertices as [`Geometry::build`] makes them: one per (mesh vertex, patch,
+/// uv), with the texture means gathered per drawn vertex.
+struct DrawnVertices {
+    positions: Vec<[f32; 3]>,
+    patch: Vec<u32>,
+    source_vertex: Vec<u32>,
+    /// First drawn vertex of each (mesh vertex, patch); further ones (other uvs) chained
+    /// through `next`.
+    first: HashMap<(u32, u32), u32>,
+    next: Vec<u32>,
+    tex: Option<VertexTextures>,
+    /// Per drawn vertex: Σ area × element mean, Σ area, Σ element mean, count (for a
+    /// vertex of zero-area elements only), and the last element counted (an element's
+    /// one or two display triangles are consecutive, so each counts once).
+    mean_sum: Vec<(DVec3, f64, DVec3, u32)>,
+    last_element: Vec<u32>,
+}
+
+impl DrawnVertices {
+    /// Room for `n` drawn vertices (a mesh's display vertex count); texture coordinates
+    /// kept when `textured`.
+    fn new(n: usize, textured: bool) -> Self {
+        DrawnVertices {
+            positions: Vec::with_capacity(n),
+            patch: Vec::with_capacity(n),
+            source_vertex: Vec::with_capacity(n),
+            first: HashMap::with_capacity(n),
+            next: Vec::with_capacity(n),
+            tex: textured.then(VertexTextures::default),
+            mean_sum: Vec::new(),
+            last_element: Vec::new(),
+        }
+    }
+
+    /// The drawn vertex of mesh vertex `v` (at `p`) on patch `pid` with the texture layer
+    /// and uv `here`; a new one when there is none yet.
+    fn find_or_add(&mut self, v: u32, pid: u32, p: DVec3, here: Option<(u32, [f32; 2])>) -> u32 {
+        let uv_of = |d: u32| {
+            self.tex
+                .as_ref()
+                .and_then(|x| (x.layer[d as usize] != 0).then(|| x.uv[d as usize]))
+        };
+        let matches = |d: u32| match (uv_of(d), here) {
+            (None, None) => true,
+            (Some(a), Some((_, b))) => same_uv(a, b),
+            _ => false,
+        };
+        let mut last = None;
+        let mut at = self.first.get(&(v, pid)).copied();
+        while let Some(d) = at {
+            if matches(d) {
+                return d;
+            }
+            last = Some(d);
+            at = (self.next[d as usize] != u32::MAX).then(|| self.next[d as usize]);
+        }
+        let d = self.positions.len() as u32;
+        self.positions.push(p.as_vec3().to_array());
+        self.patch.push(pid);
+        self.source_vertex.push(v);
+        self.next.push(u32::MAX);
+        match last {
+            Some(l) => self.next[l as usize] = d,
+            None => {
+                self.first.insert((v, pid), d);
+            }
+        }
+        if let Some(x) = self.tex.as_mut() {
+            let (layer, uv) = here.unwrap_or((0, [0.0; 2]));
+            x.layer.push(layer);
+            x.uv.push(uv);
+            self.mean_sum.push((DVec3::ZERO, 0.0, DVec3::ZERO, 0));
+            self.last_element.push(u32::MAX);
+        }
+        d
+    }
+
+    /// Counts element `e` (texture mean `m`, `area`) toward drawn vertex `d`'s texture
+    /// mean, once per element.
+    fn count_mean(&mut self, d: u32, e: u32, m: Rgb, area: f64) {
+        if self.last_element[d as usize] == e {
+            return;
+        }
+        self.last_element[d as usize] = e;
+        let s = &mut self.mean_sum[d as usize];
+        s.0 += m * area;
+        s.1 += area;
+        s.2 += m;
+        s.3 += 1;
+    }
+
+    /// The texture coordinates with each drawn vertex's mean, once every triangle is
+    /// counted (area-weighted; plain for zero-area elements; 1 where none counted).
+    fn texture_means(&mut self) -> Option<VertexTextures> {
+        let mut tex = self.tex.take()?;
+        tex.mean = self
+            .mean_sum
+            .iter()
+            .map(|&(s, a, plain, k)| {
+                let m = if a > 0.0 {
+                    s / a
+                } else if k > 0 {
+                    plain / k as f64
+                } else {
+                    Rgb::ONE
+                };
+                m.as_vec3().to_array()
+            })
+            .collect();
+        Some(tex)
+    }
+}
+
+/// Closed polygons as line-list endpoints (each edge once, the last back to the first).
+fn outlines<P: AsRef<[DVec3]>>(polygons: impl Iterator<Item = P>) -> Vec<[f32; 3]> {
+    let mut lines = Vec::new();
+    for c in polygons {
+        let c = c.as_ref();
+        for k in 0..c.len() {
+            lines.push(c[k].as_vec3().to_array());
+            lines.push(c[(k + 1) % c.len()].as_vec3().to_array());
+        }
+    }
+    lines
+}
+
 impl Geometry {
     /// Number of mesh display vertices the drawn vertices expand ([`Geometry::source_vertex`]).
     pub fn display_vertex_count(&self) -> usize {
@@ -130,21 +256,8 @@ impl Geometry {
     }
 
     fn build(id: u64, mesh: &Mesh, texturing: Option<Texturing>) -> Geometry {
-        let n = mesh.vertices.len();
-        let mut positions = Vec::with_capacity(n);
-        let mut patch = Vec::with_capacity(n);
-        let mut source_vertex = Vec::with_capacity(n);
+        let mut drawn = DrawnVertices::new(mesh.vertices.len(), texturing.is_some());
         let mut indices = Vec::with_capacity(mesh.triangles.len() * 3);
-        // First drawn vertex of each (mesh vertex, patch); further ones (other uvs) chained
-        // through `next`.
-        let mut drawn: HashMap<(u32, u32), u32> = HashMap::with_capacity(n);
-        let mut next: Vec<u32> = Vec::with_capacity(n);
-        let mut tex = texturing.as_ref().map(|_| VertexTextures::default());
-        // Per drawn vertex: Σ area × element mean, Σ area, Σ element mean, count (for a
-        // vertex of zero-area elements only), and the last element counted (an element's
-        // one or two display triangles are consecutive, so each counts once).
-        let mut mean_sum: Vec<(DVec3, f64, DVec3, u32)> = Vec::new();
-        let mut last_element: Vec<u32> = Vec::new();
         let mut inputs = Vec::with_capacity(mesh.triangles.len());
         for (i, (t, e)) in mesh
             .triangles
@@ -157,57 +270,11 @@ impl Geometry {
             let area = mesh.elements[e.0 as usize].area;
             for (&v, &p) in t.iter().zip(&corners) {
                 let here = texturing.as_ref().and_then(|x| x.at(mesh, e.0 as usize, p));
-                let uv_of = |d: u32, tex: &Option<VertexTextures>| {
-                    tex.as_ref()
-                        .and_then(|x| (x.layer[d as usize] != 0).then(|| x.uv[d as usize]))
-                };
-                let matches = |d: u32, tex: &Option<VertexTextures>| match (uv_of(d, tex), here) {
-                    (None, None) => true,
-                    (Some(a), Some((_, b))) => same_uv(a, b),
-                    _ => false,
-                };
-                let mut found = None;
-                let mut last = None;
-                let mut at = drawn.get(&(v, pid)).copied();
-                while let Some(d) = at {
-                    if matches(d, &tex) {
-                        found = Some(d);
-                        break;
-                    }
-                    last = Some(d);
-                    at = (next[d as usize] != u32::MAX).then(|| next[d as usize]);
-                }
-                let d = found.unwrap_or_else(|| {
-                    let d = positions.len() as u32;
-                    positions.push(p.as_vec3().to_array());
-                    patch.push(pid);
-                    source_vertex.push(v);
-                    next.push(u32::MAX);
-                    match last {
-                        Some(l) => next[l as usize] = d,
-                        None => {
-                            drawn.insert((v, pid), d);
-                        }
-                    }
-                    if let Some(x) = tex.as_mut() {
-                        let (layer, uv) = here.unwrap_or((0, [0.0; 2]));
-                        x.layer.push(layer);
-                        x.uv.push(uv);
-                        mean_sum.push((DVec3::ZERO, 0.0, DVec3::ZERO, 0));
-                        last_element.push(u32::MAX);
-                    }
-                    d
-                });
+                let d = drawn.find_or_add(v, pid, p, here);
                 if let Some(x) = &texturing
                     && let Some(m) = x.element_texture.get(e.0 as usize)
-                    && last_element[d as usize] != e.0
                 {
-                    last_element[d as usize] = e.0;
-                    let s = &mut mean_sum[d as usize];
-                    s.0 += *m * area;
-                    s.1 += area;
-                    s.2 += *m;
-                    s.3 += 1;
+                    drawn.count_mean(d, e.0, *m, area);
                 }
                 indices.push(d);
             }
@@ -219,47 +286,17 @@ impl Geometry {
                 cut: None,
             });
         }
-        if let Some(x) = tex.as_mut() {
-            x.mean = mean_sum
-                .iter()
-                .map(|&(s, a, plain, k)| {
-                    let m = if a > 0.0 {
-                        s / a
-                    } else if k > 0 {
-                        plain / k as f64
-                    } else {
-                        Rgb::ONE
-                    };
-                    m.as_vec3().to_array()
-                })
-                .collect();
-        }
-        let mut element_lines = Vec::with_capacity(mesh.elements.len() * 8);
-        for e in &mesh.elements {
-            let c = e.corners();
-            for k in 0..c.len() {
-                element_lines.push(c[k].as_vec3().to_array());
-                element_lines.push(c[(k + 1) % c.len()].as_vec3().to_array());
-            }
-        }
-        let mut patch_lines = Vec::new();
-        for p in &mesh.patches {
-            let c = &p.polygon;
-            for k in 0..c.len() {
-                patch_lines.push(c[k].as_vec3().to_array());
-                patch_lines.push(c[(k + 1) % c.len()].as_vec3().to_array());
-            }
-        }
+        let textures = drawn.texture_means();
         let b = mesh.bounds();
         Geometry {
             id,
-            positions,
-            patch,
-            source_vertex,
+            positions: drawn.positions,
+            patch: drawn.patch,
+            source_vertex: drawn.source_vertex,
             indices,
-            textures: tex,
-            element_lines,
-            patch_lines,
+            textures,
+            element_lines: outlines(mesh.elements.iter().map(|e| e.corners())),
+            patch_lines: outlines(mesh.patches.iter().map(|p| &p.polygon)),
             bvh: Bvh::build(&inputs),
             triangle_element: mesh.triangle_element.iter().map(|e| e.0).collect(),
             element_patch: mesh.elements.iter().map(|e| e.patch.0).collect(),

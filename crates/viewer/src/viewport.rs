@@ -30,23 +30,10 @@ impl ViewerApp {
         let Some(camera) = self.camera.as_mut() else {
             return;
         };
-        // Camera: drag = orbit, right/middle drag or shift+drag = pan, wheel = zoom.
-        let shift = ui.input(|i| i.modifiers.shift);
-        let delta = response.drag_delta();
-        if response.dragged_by(egui::PointerButton::Primary) && !shift {
-            camera.orbit(delta.x as f64, delta.y as f64);
-        } else if response.dragged_by(egui::PointerButton::Secondary)
-            || response.dragged_by(egui::PointerButton::Middle)
-            || (response.dragged_by(egui::PointerButton::Primary) && shift)
-        {
-            camera.pan(delta.x as f64, delta.y as f64, rect.height() as f64);
-        }
-        if response.hovered() {
-            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
-            if scroll != 0.0 {
-                camera.zoom(scroll as f64);
-            }
-        }
+        steer(camera, ui, &response, rect);
+        let view_proj = camera
+            .view_proj(rect.aspect_ratio() as f64)
+            .to_cols_array_2d();
         if response.double_clicked() {
             actions.push(Action::FrameScene);
         } else if response.clicked()
@@ -59,90 +46,11 @@ impl ViewerApp {
                 rect.width() as f64,
                 rect.height() as f64,
             );
-            if self.panel.lights.is_placing() {
-                // The Lights panel asked for this click: place the light there.
-                if let Some((point, normal)) = snap.geometry.pick_surface(o, d) {
-                    crate::lights_panel::place_at(
-                        &mut self.panel.lights,
-                        &snap,
-                        point,
-                        normal,
-                        actions,
-                    );
-                }
-            } else {
-                actions.push(Action::Select(snap.geometry.pick(o, d).map(|p| p.0)));
-                if let Some(teach) = self.teach.as_mut() {
-                    teach.element = snap.geometry.pick_element(o, d);
-                }
-            }
+            self.pick(&snap, o, d, actions);
         }
+        let (snap, ambient, exposure) = self.shown(snap);
+        let uniforms = self.uniforms(&snap, view_proj, ambient, exposure);
         let view = &self.panel.view;
-        // Multiplies the per-vertex display correction (see `Snapshot::correction`).
-        let mut ambient = if view.ambient { [1.0; 3] } else { [0.0; 3] };
-        // Step mode: what the last shot added; matrix view: the shooter's column (colours
-        // as radiance, exposure 0); instead of the solution.
-        let replaced = self.teach.as_ref().and_then(|t| match t.view {
-            TeachView::Step if t.show_received => snap
-                .teach_step
-                .as_ref()
-                .map(|d| d.received_vertices.clone()),
-            TeachView::Matrix if t.show_column => snap
-                .teach_matrix
-                .as_ref()
-                .and_then(|d| d.column_colours.clone()),
-            _ => None,
-        });
-        // The column's colours are display colours: no exposure.
-        let exposure = if replaced.is_some()
-            && self
-                .teach
-                .as_ref()
-                .is_some_and(|t| t.view == TeachView::Matrix)
-        {
-            1.0
-        } else {
-            view.exposure()
-        };
-        let snap = match replaced {
-            Some(radiance) => {
-                ambient = [0.0; 3];
-                Arc::new(Snapshot {
-                    // Its own sequence numbers, so the radiance buffer is uploaded again.
-                    seq: snap.seq | 1 << 62,
-                    radiance,
-                    ..(*snap).clone()
-                })
-            }
-            None => snap,
-        };
-        let mut flags = 0;
-        if view.highlight_shooter {
-            flags |= FLAG_SHOOTER;
-        }
-        if self.panel.selection.is_some() {
-            flags |= FLAG_SELECTION;
-        }
-        let shooter = snap.stats.last_shooter.unwrap_or(NO_PATCH);
-        let uniforms = Uniforms {
-            view_proj: camera
-                .view_proj(rect.aspect_ratio() as f64)
-                .to_cols_array_2d(),
-            ambient_exposure: [ambient[0], ambient[1], ambient[2], exposure],
-            ids: [shooter, self.panel.selection.unwrap_or(NO_PATCH), flags, 0],
-            element_line_color: [0.0, 0.0, 0.0, 0.45],
-            patch_line_color: [1.0, 1.0, 1.0, 0.8],
-            params: [
-                1e-3,
-                if view.textures && snap.textures.is_some() {
-                    1.0
-                } else {
-                    0.0
-                },
-                0.0,
-                0.0,
-            ],
-        };
         ui.painter().add(egui_wgpu::Callback::new_paint_callback(
             rect,
             ViewportCallback {
@@ -168,6 +76,101 @@ impl ViewerApp {
         }
     }
 
+    /// A click in the viewport along the ray `o + t·d`: places the light the Lights panel
+    /// asked for, or selects the patch (and, in teaching mode, the element) hit.
+    fn pick(&mut self, snap: &Snapshot, o: glam::DVec3, d: glam::DVec3, actions: &mut Vec<Action>) {
+        if self.panel.lights.is_placing() {
+            // The Lights panel asked for this click: place the light there.
+            if let Some((point, normal)) = snap.geometry.pick_surface(o, d) {
+                crate::lights_panel::place_at(&mut self.panel.lights, snap, point, normal, actions);
+            }
+        } else {
+            actions.push(Action::Select(snap.geometry.pick(o, d).map(|p| p.0)));
+            if let Some(teach) = self.teach.as_mut() {
+                teach.element = snap.geometry.pick_element(o, d);
+            }
+        }
+    }
+
+    /// What the viewport draws: the snapshot, or in step mode what the last shot added and
+    /// in the matrix view the shooter's column (colours as radiance, exposure 0) instead of
+    /// the solution; with the ambient multiplier and the exposure to draw it with.
+    fn shown(&self, snap: Arc<Snapshot>) -> (Arc<Snapshot>, [f32; 3], f32) {
+        let view = &self.panel.view;
+        // Multiplies the per-vertex display correction (see `Snapshot::correction`).
+        let ambient = if view.ambient { [1.0; 3] } else { [0.0; 3] };
+        let replaced = self.teach.as_ref().and_then(|t| match t.view {
+            TeachView::Step if t.show_received => snap
+                .teach_step
+                .as_ref()
+                .map(|d| d.received_vertices.clone()),
+            TeachView::Matrix if t.show_column => snap
+                .teach_matrix
+                .as_ref()
+                .and_then(|d| d.column_colours.clone()),
+            _ => None,
+        });
+        // The column's colours are display colours: no exposure.
+        let exposure = if replaced.is_some()
+            && self
+                .teach
+                .as_ref()
+                .is_some_and(|t| t.view == TeachView::Matrix)
+        {
+            1.0
+        } else {
+            view.exposure()
+        };
+        match replaced {
+            Some(radiance) => {
+                let snap = Arc::new(Snapshot {
+                    // Its own sequence numbers, so the radiance buffer is uploaded again.
+                    seq: snap.seq | 1 << 62,
+                    radiance,
+                    ..(*snap).clone()
+                });
+                (snap, [0.0; 3], exposure)
+            }
+            None => (snap, ambient, exposure),
+        }
+    }
+
+    /// The viewport shader's uniforms for drawing `snap`.
+    fn uniforms(
+        &self,
+        snap: &Snapshot,
+        view_proj: [[f32; 4]; 4],
+        ambient: [f32; 3],
+        exposure: f32,
+    ) -> Uniforms {
+        let view = &self.panel.view;
+        let mut flags = 0;
+        if view.highlight_shooter {
+            flags |= FLAG_SHOOTER;
+        }
+        if self.panel.selection.is_some() {
+            flags |= FLAG_SELECTION;
+        }
+        let shooter = snap.stats.last_shooter.unwrap_or(NO_PATCH);
+        Uniforms {
+            view_proj,
+            ambient_exposure: [ambient[0], ambient[1], ambient[2], exposure],
+            ids: [shooter, self.panel.selection.unwrap_or(NO_PATCH), flags, 0],
+            element_line_color: [0.0, 0.0, 0.0, 0.45],
+            patch_line_color: [1.0, 1.0, 1.0, 0.8],
+            params: [
+                1e-3,
+                if view.textures && snap.textures.is_some() {
+                    1.0
+                } else {
+                    0.0
+                },
+                0.0,
+                0.0,
+            ],
+        }
+    }
+
     pub(super) fn keys(&mut self, ctx: &egui::Context, actions: &mut Vec<Action>) {
         if ctx.egui_wants_keyboard_input() {
             return;
@@ -188,5 +191,30 @@ impl ViewerApp {
                 }));
             }
         });
+    }
+}
+
+/// Camera: drag = orbit, right/middle drag or shift+drag = pan, wheel = zoom.
+fn steer(
+    camera: &mut crate::camera::OrbitCamera,
+    ui: &egui::Ui,
+    response: &egui::Response,
+    rect: egui::Rect,
+) {
+    let shift = ui.input(|i| i.modifiers.shift);
+    let delta = response.drag_delta();
+    if response.dragged_by(egui::PointerButton::Primary) && !shift {
+        camera.orbit(delta.x as f64, delta.y as f64);
+    } else if response.dragged_by(egui::PointerButton::Secondary)
+        || response.dragged_by(egui::PointerButton::Middle)
+        || (response.dragged_by(egui::PointerButton::Primary) && shift)
+    {
+        camera.pan(delta.x as f64, delta.y as f64, rect.height() as f64);
+    }
+    if response.hovered() {
+        let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+        if scroll != 0.0 {
+            camera.zoom(scroll as f64);
+        }
     }
 }

@@ -122,7 +122,7 @@ impl Worker {
                         // rows) and history go on too.
                         self.elapsed += start.elapsed();
                         self.solver = Some(carried);
-                        self.step_detail = None;
+                        self.teach.step_detail = None;
                         self.dirty = true;
                     }
                     Err(p) => self.build(*p, None),

@@ -6,21 +6,56 @@ use std::time::Instant;
 
 use nusselt_core::mesh::PatchId;
 use nusselt_core::scene::Rgb;
+use nusselt_core::solver::Solver;
 
-use super::super::snapshot::{Snapshot, Stats};
+use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, Stats};
 use super::worker::Worker;
+
+/// What was published, and when.
+#[derive(Default)]
+pub(super) struct Published {
+    /// The last snapshot's sequence number.
+    pub(super) seq: u64,
+    /// When the last snapshot was published.
+    pub(super) last: Option<Instant>,
+    /// A material edit was applied and not yet published.
+    pub(super) edit_unpublished: bool,
+    /// When the latest edit was first published.
+    edit_published: Option<Instant>,
+}
+
+impl Published {
+    /// Counts a snapshot published at `now`: its sequence number, and when the latest edit
+    /// was first published (now, if one waited).
+    fn next(&mut self, now: Instant) -> (u64, Option<Instant>) {
+        self.seq += 1;
+        if self.edit_unpublished {
+            self.edit_unpublished = false;
+            self.edit_published = Some(now);
+        }
+        (self.seq, self.edit_published)
+    }
+}
 
 impl Worker {
     /// Publishes the current state as a [`Snapshot`] and wakes the UI.
     pub(super) fn publish(&mut self) {
-        self.refresh_hemicube();
-        self.refresh_matrix();
-        self.refresh_nusselt();
-        self.refresh_compare();
-        self.refresh_mesh_view();
+        self.refresh_teaching();
         self.refresh_ray_input();
-        let (Some(solver), Some(geometry)) = (&self.solver, &self.geometry) else {
+        let Some(snapshot) = self.snapshot() else {
             return;
+        };
+        let now = snapshot.published;
+        self.latest.publish(Arc::new(snapshot));
+        self.published.last = Some(now);
+        self.dirty = false;
+        (self.waker)();
+    }
+
+    /// The current state, numbered as the next snapshot; `None` without a scene.
+    fn snapshot(&mut self) -> Option<Snapshot> {
+        let (Some(solver), Some(geometry)) = (&self.solver, &self.geometry) else {
+            return None;
         };
         let problem = solver.problem();
         // Read again when the mesh or the materials (an area light's radiance) change.
@@ -28,66 +63,17 @@ impl Worker {
         if self.area_lights.0 != key {
             self.area_lights = (key, Arc::new(problem.scene.area_lights()));
         }
-        let plain = solver.radiosity().to_vec();
-        let shown = solver.display_radiance();
-        let correction: Vec<Rgb> = shown.iter().zip(&plain).map(|(s, b)| *s - *b).collect();
-        let radiance = geometry.expand(&problem.mesh.vertex_values(&plain));
-        let correction = geometry.expand(&problem.mesh.vertex_values(&correction));
-        debug_assert!(radiance.iter().flatten().all(|x| x.is_finite()));
+        let (radiance, correction) = drawn_radiance(solver.as_ref(), geometry);
         let ambient = solver.shooting().map_or(Rgb::ZERO, |s| s.ambient());
         debug_assert!(ambient.is_finite());
-        let steps_per_second = {
-            let h = &self.history;
-            match (
-                h.last(),
-                h.iter()
-                    .rev()
-                    .find(|p| h.last().is_some_and(|l| l.seconds - p.seconds >= 1.0)),
-            ) {
-                (Some(l), Some(p)) => (l.steps - p.steps) as f64 / (l.seconds - p.seconds),
-                (Some(l), None) if l.seconds > 0.0 => l.steps as f64 / l.seconds,
-                _ => 0.0,
-            }
-        };
-        let residual = solver.residual();
-        let stats = Stats {
-            solver: solver.name(),
-            report: match &self.adapting {
-                Some(a) => format!(
-                    "{}; adaptive: pass {}, tolerance {}",
-                    solver.report(),
-                    a.passes + 1,
-                    a.tolerance
-                ),
-                None => solver.report(),
-            },
-            matrix_bytes: solver.matrix_bytes(),
-            resident_bytes: solver.problem().resident_bytes(),
-            memory_budget: solver.problem().config.memory_bytes,
-            elements: geometry.elements,
-            patches: geometry.patches,
-            steps: solver.steps(),
-            steps_per_second,
-            residual,
-            elapsed_seconds: self.elapsed.as_secs_f64(),
-            playing: self.playing,
-            converged: (residual <= self.stop_unshot || self.exhausted) && self.adapting.is_none(),
-            limit_reached: self.max_shots.is_some_and(|m| solver.steps() >= m),
-            last_shooter: solver
-                .shooting()
-                .and_then(|s| s.last_shooter())
-                .map(|p: PatchId| p.0),
-        };
-        self.seq += 1;
+        let stats = self.stats(solver.as_ref(), geometry);
         let now = Instant::now();
-        if self.edit_unpublished {
-            self.edit_unpublished = false;
-            self.edit_published = Some(now);
-        }
-        let snapshot = Snapshot {
-            seq: self.seq,
+        let (seq, edit_published) = self.published.next(now);
+        let teach = self.teach.view();
+        Some(Snapshot {
+            seq,
             published: now,
-            edit_published: self.edit_published,
+            edit_published,
             geometry: geometry.clone(),
             radiance: Arc::new(radiance),
             correction: Arc::new(correction),
@@ -109,18 +95,74 @@ impl Worker {
             two_sided: problem.scene.two_sided,
             method: problem.config.formfactor.method,
             solver_kind: self.kind,
-            teach_step: self.step_detail.clone(),
-            teach_hemicube: self.hemicube_detail.clone(),
-            teach_matrix: self.matrix_detail.clone(),
-            teach_nusselt: self.nusselt_detail.clone(),
-            teach_compare: self.compare_detail.clone(),
-            teach_mesh: self.mesh_detail.clone(),
-            teach_mesh_stage: self.mesh_job.as_ref().map(|j| j.stage()),
-            ray_input: self.ray_input.clone(),
-        };
-        self.latest.publish(Arc::new(snapshot));
-        self.last_publish = Some(now);
-        self.dirty = false;
-        (self.waker)();
+            teach_step: teach.step,
+            teach_hemicube: teach.hemicube,
+            teach_matrix: teach.matrix,
+            teach_nusselt: teach.nusselt,
+            teach_compare: teach.compare,
+            teach_mesh: teach.mesh,
+            teach_mesh_stage: teach.mesh_stage,
+            ray_input: self.ray.input.clone(),
+        })
+    }
+
+    /// The numbers the side panel shows.
+    fn stats(&self, solver: &dyn Solver, geometry: &Geometry) -> Stats {
+        let residual = solver.residual();
+        Stats {
+            solver: solver.name(),
+            report: match &self.adapting {
+                Some(a) => format!(
+                    "{}; adaptive: pass {}, tolerance {}",
+                    solver.report(),
+                    a.passes + 1,
+                    a.tolerance
+                ),
+                None => solver.report(),
+            },
+            matrix_bytes: solver.matrix_bytes(),
+            resident_bytes: solver.problem().resident_bytes(),
+            memory_budget: solver.problem().config.memory_bytes,
+            elements: geometry.elements,
+            patches: geometry.patches,
+            steps: solver.steps(),
+            steps_per_second: steps_per_second(&self.history),
+            residual,
+            elapsed_seconds: self.elapsed.as_secs_f64(),
+            playing: self.playing,
+            converged: (residual <= self.stop_unshot || self.exhausted) && self.adapting.is_none(),
+            limit_reached: self.max_shots.is_some_and(|m| solver.steps() >= m),
+            last_shooter: solver
+                .shooting()
+                .and_then(|s| s.last_shooter())
+                .map(|p: PatchId| p.0),
+        }
+    }
+}
+
+/// Radiance per drawn vertex without the display correction, and the correction (the
+/// solver's estimate of the light still missing).
+fn drawn_radiance(solver: &dyn Solver, geometry: &Geometry) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+    let mesh = &solver.problem().mesh;
+    let plain = solver.radiosity().to_vec();
+    let shown = solver.display_radiance();
+    let correction: Vec<Rgb> = shown.iter().zip(&plain).map(|(s, b)| *s - *b).collect();
+    let radiance = geometry.expand(&mesh.vertex_values(&plain));
+    let correction = geometry.expand(&mesh.vertex_values(&correction));
+    debug_assert!(radiance.iter().flatten().all(|x| x.is_finite()));
+    (radiance, correction)
+}
+
+/// Steps per second over the last second of solve time (or since the start, when shorter).
+fn steps_per_second(h: &[HistoryPoint]) -> f64 {
+    match (
+        h.last(),
+        h.iter()
+            .rev()
+            .find(|p| h.last().is_some_and(|l| l.seconds - p.seconds >= 1.0)),
+    ) {
+        (Some(l), Some(p)) => (l.steps - p.steps) as f64 / (l.seconds - p.seconds),
+        (Some(l), None) if l.seconds > 0.0 => l.steps as f64 / l.seconds,
+        _ => 0.0,
     }
 }

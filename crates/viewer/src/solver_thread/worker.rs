@@ -13,14 +13,15 @@ use nusselt_core::scene::{AreaLight, LoadOptions, Material, MaterialId, Rgb, Sce
 use nusselt_core::solver::{Problem, Solver, SolverConfig, SolverKind};
 
 use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, vertex_reflectance};
-use super::super::teach::compare::{CompareDetail, CompareWork};
-use super::super::teach::hemicube::{HemicubeDetail, HemicubeRequest};
-use super::super::teach::matrix::{MatrixDetail, MatrixWork};
-use super::super::teach::meshing::{MeshDetail, MeshJob};
-use super::super::teach::nusselt::{NusseltDetail, NusseltRequest};
-use super::super::teach::step::{Before, StepDetail};
+use super::super::teach::step::Before;
+use super::publish::Published;
+use super::ray_input::RayInput;
+use super::teach::Teaching;
 use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
 
+/// The solver thread's state. The solve's own state is here; the teaching views'
+/// ([`Teaching`]), the ray-traced view's input ([`RayInput`]) and what was published when
+/// ([`Published`]) are grouped in their own structs.
 pub(super) struct Worker {
     pub(super) rx: Receiver<Command>,
     pub(super) events: SyncSender<Event>,
@@ -44,7 +45,6 @@ pub(super) struct Worker {
     /// The first view of the current scene (`render::view::default_camera`), chosen once
     /// per load.
     pub(super) scene_camera: nusselt_core::scene::Camera,
-    pub(super) seq: u64,
     pub(super) playing: bool,
     /// Single steps still to take.
     pub(super) steps: usize,
@@ -54,43 +54,17 @@ pub(super) struct Worker {
     pub(super) history: Arc<Vec<HistoryPoint>>,
     /// Solve time since the last (re)start, pauses excluded.
     pub(super) elapsed: Duration,
-    pub(super) last_publish: Option<Instant>,
-    /// Something changed since the last publish.
+    /// Something changed since the last publish (set by every concern: solving, edits,
+    /// teaching views, adaptive refinement).
     pub(super) dirty: bool,
-    /// A material edit was applied and not yet published.
-    pub(super) edit_unpublished: bool,
-    pub(super) edit_published: Option<Instant>,
+    /// What was published when (`publish.rs`).
+    pub(super) published: Published,
     /// Set by [`Command::PanicOnNextShot`].
     pub(super) panic_on_next_shot: Option<String>,
-    /// Teaching mode (`teach.rs`): record single steps, the last one recorded, the
-    /// hemicube asked for and the one computed.
-    pub(super) record_steps: bool,
-    pub(super) step_detail: Option<Arc<StepDetail>>,
-    pub(super) hemicube_request: Option<HemicubeRequest>,
-    pub(super) hemicube_detail: Option<Arc<HemicubeDetail>>,
-    /// What `hemicube_detail` was computed for: request, last shooter, mesh.
-    pub(super) hemicube_key: Option<(HemicubeRequest, Option<u32>, u64)>,
-    pub(super) hemicube_drawn: Option<Instant>,
-    /// The Nusselt view asked for, the one computed, and for what (request, shooter, mesh).
-    pub(super) nusselt_request: Option<NusseltRequest>,
-    pub(super) nusselt_detail: Option<Arc<NusseltDetail>>,
-    pub(super) nusselt_key: Option<(NusseltRequest, Option<u32>, u64)>,
-    /// The matrix view's rows, filled while idle, and what was last published of it.
-    pub(super) matrix_work: Option<MatrixWork>,
-    pub(super) matrix_detail: Option<Arc<MatrixDetail>>,
-    pub(super) matrix_published: Option<(Instant, usize, Option<u32>)>,
-    /// Shooting vs gathering: the comparison run, and what was last published of it.
-    pub(super) compare_work: Option<CompareWork>,
-    pub(super) compare_detail: Option<Arc<CompareDetail>>,
-    /// Uniform vs adaptive meshing: the job computing it, and its result.
-    pub(super) mesh_job: Option<MeshJob>,
-    pub(super) mesh_detail: Option<Arc<MeshDetail>>,
-    /// The ray-traced view is on: publish its input (`ray_input.rs`), taken for this
-    /// (steps, mesh, materials) at this time.
-    pub(super) ray_input_on: bool,
-    pub(super) ray_input: Option<Arc<crate::raytrace::RenderInput>>,
-    pub(super) ray_input_key: Option<(usize, u64, u64)>,
-    pub(super) ray_input_at: Option<Instant>,
+    /// Teaching mode's views (`teach.rs`).
+    pub(super) teach: Teaching,
+    /// The ray-traced view's input (`ray_input.rs`).
+    pub(super) ray: RayInput,
     /// Adaptive refinement in progress (`adapt.rs`).
     pub(super) adapting: Option<super::adapt::Adapting>,
     /// The scene's area lights, read for this (mesh id, reflectance revision).
@@ -128,7 +102,6 @@ impl Worker {
             next_id: 1,
             scene_rev: 0,
             scene_camera: nusselt_core::scene::Camera::cornell(),
-            seq: 0,
             playing: config.play,
             steps: 0,
             stop_unshot: config.stop_unshot,
@@ -136,31 +109,11 @@ impl Worker {
             config: config.solver,
             history: Arc::new(Vec::new()),
             elapsed: Duration::ZERO,
-            last_publish: None,
             dirty: false,
-            edit_unpublished: false,
-            edit_published: None,
+            published: Published::default(),
             panic_on_next_shot: None,
-            record_steps: false,
-            step_detail: None,
-            hemicube_request: None,
-            hemicube_detail: None,
-            hemicube_key: None,
-            hemicube_drawn: None,
-            nusselt_request: None,
-            nusselt_detail: None,
-            nusselt_key: None,
-            matrix_work: None,
-            matrix_detail: None,
-            matrix_published: None,
-            compare_work: None,
-            compare_detail: None,
-            mesh_job: None,
-            mesh_detail: None,
-            ray_input_on: false,
-            ray_input: None,
-            ray_input_key: None,
-            ray_input_at: None,
+            teach: Teaching::default(),
+            ray: RayInput::default(),
             adapting: None,
             area_lights: ((0, 0), Arc::new(Vec::new())),
         }
@@ -185,12 +138,12 @@ impl Worker {
                     }
                     // Wake up now and then even if idle so a lost waker cannot stall
                     // anything; no work is done on these wake-ups.
-                    let wait = self.teach_wait().unwrap_or(Duration::from_millis(500));
+                    let wait = self.teach.wait().unwrap_or(Duration::from_millis(500));
                     match self.rx.recv_timeout(wait) {
                         Ok(c) => c,
                         Err(RecvTimeoutError::Timeout) => {
                             // The meshing view's job reports its stage.
-                            self.dirty |= self.mesh_job.is_some();
+                            self.dirty |= self.teach.meshing();
                             continue;
                         }
                         Err(RecvTimeoutError::Disconnected) => return,
@@ -267,7 +220,8 @@ impl Worker {
     }
 
     fn due(&self) -> bool {
-        self.last_publish
+        self.published
+            .last
             .is_none_or(|t| t.elapsed() >= PUBLISH_INTERVAL)
     }
 
@@ -283,14 +237,14 @@ impl Worker {
         };
         // Teaching mode records single steps (not a running solve: it costs a copy of the
         // state and a row).
-        let before = (self.record_steps && !self.playing)
+        let before = (self.teach.record_steps && !self.playing)
             .then(|| Before::take(solver.as_ref()))
             .flatten();
         let start = Instant::now();
         let stepped = solver.step(&self.cancel);
         self.elapsed += start.elapsed();
         if stepped {
-            self.step_detail = match (before, &self.geometry) {
+            self.teach.step_detail = match (before, &self.geometry) {
                 (Some(b), Some(g)) => {
                     crate::teach::step::capture(b, solver.as_ref(), g).map(Arc::new)
                 }
@@ -384,7 +338,7 @@ impl Worker {
     }
 
     pub(super) fn restart_clock(&mut self) {
-        self.step_detail = None;
+        self.teach.step_detail = None;
         self.elapsed = Duration::ZERO;
         self.history = Arc::new(Vec::new());
         self.dirty = true;
@@ -432,7 +386,7 @@ impl Worker {
             Command::SetLights(lights) => {
                 if let Some(s) = self.solver.as_mut() {
                     s.set_lights(lights);
-                    self.edit_unpublished = true;
+                    self.published.edit_unpublished = true;
                     self.dirty = true;
                 }
             }
@@ -452,13 +406,7 @@ impl Worker {
             Command::SetSolver(kind) => self.set_solver(kind),
             Command::Teach(t) => self.teach(t),
             Command::Adapt(t) => self.start_adapting(t),
-            Command::RayTraced(on) => {
-                self.ray_input_on = on;
-                if !on {
-                    self.ray_input = None;
-                    self.ray_input_key = None;
-                }
-            }
+            Command::RayTraced(on) => self.ray.set_on(on),
             Command::LoadPath(path) => match load_path(&path) {
                 Ok((scene, None)) => self.load(scene),
                 Ok((scene, Some(file))) => self.load_scene_file(scene, &file),
@@ -571,7 +519,7 @@ impl Worker {
         };
         match s.set_material(id, reflectance, emission) {
             Ok(()) => {
-                self.edit_unpublished = true;
+                self.published.edit_unpublished = true;
                 if let Some(g) = &self.geometry {
                     self.reflectance =
                         Arc::new(vertex_reflectance(g, &s.problem().scene.materials));

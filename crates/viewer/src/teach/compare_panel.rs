@@ -78,6 +78,24 @@ pub(super) fn show(
         return;
     }
     ui.separator();
+    controls(ui, state, &d, actions);
+    numbers(ui, &d);
+    ui.label(
+        "Error: Σ A_p |B_p − B*_p| / Σ A_p B*_p against the converged answer of the same \
+         matrix (the iteration's error, not the mesh's). Notice: after a few steps shooting \
+         has sent the lights' power everywhere, while gathering has updated only the first \
+         patches. After a sweep Gauss-Seidel shows the whole room too, but shooting stays \
+         ahead: it always sends the largest unshot power next.",
+    );
+}
+
+/// Step, Play/Pause, Reset, the rate, and the ambient toggle.
+fn controls(
+    ui: &mut egui::Ui,
+    state: &mut TeachState,
+    d: &CompareDetail,
+    actions: &mut Vec<Action>,
+) {
     ui.horizontal(|ui| {
         if ui
             .button("Step")
@@ -109,6 +127,10 @@ pub(super) fn show(
         &mut state.compare_ambient,
         "show shooting with the ambient term",
     );
+}
+
+/// The runs' sizes and errors, the unshot power and the ambient term.
+fn numbers(ui: &mut egui::Ui, d: &CompareDetail) {
     let last = d.curve.last().copied();
     egui::Grid::new("teach-compare")
         .num_columns(2)
@@ -142,13 +164,6 @@ pub(super) fn show(
                 ),
             );
         });
-    ui.label(
-        "Error: Σ A_p |B_p − B*_p| / Σ A_p B*_p against the converged answer of the same \
-         matrix (the iteration's error, not the mesh's). Notice: after a few steps shooting \
-         has sent the lights' power everywhere, while gathering has updated only the first \
-         patches. After a sweep Gauss-Seidel shows the whole room too, but shooting stays \
-         ahead: it always sends the largest unshot power next.",
-    );
 }
 
 /// Linear radiance to an sRGB colour after `exposure`.
@@ -201,9 +216,23 @@ pub(super) fn central(ui: &mut egui::Ui, state: &mut TeachState, s: &Snapshot, e
         ));
         return;
     }
+    update_textures(ui, state, s, &d, exposure);
+    side_by_side(ui, state, &d);
+    error_curves(ui, &d);
+}
+
+/// The two images as textures, made again when the detail or the display settings
+/// changed.
+fn update_textures(
+    ui: &egui::Ui,
+    state: &mut TeachState,
+    s: &Snapshot,
+    d: &Arc<CompareDetail>,
+    exposure: f32,
+) {
     let key = (exposure.to_bits(), state.compare_ambient);
     let t = &mut state.compare_textures;
-    if t.detail.as_ref().is_none_or(|old| !Arc::ptr_eq(old, &d)) || t.key != Some(key) {
+    if t.detail.as_ref().is_none_or(|old| !Arc::ptr_eq(old, d)) || t.key != Some(key) {
         let shooting = if state.compare_ambient {
             &d.shooting_ambient
         } else {
@@ -212,14 +241,14 @@ pub(super) fn central(ui: &mut egui::Ui, state: &mut TeachState, s: &Snapshot, e
         let yellow = [255, 230, 0];
         let cyan = [0, 220, 255];
         let left = image(
-            &d,
+            d,
             s,
             shooting,
             d.last_shooter.map(|p| (p, yellow)),
             exposure,
         );
         let right = image(
-            &d,
+            d,
             s,
             &d.gathering,
             d.last_gatherer.map(|p| (p, cyan)),
@@ -231,6 +260,11 @@ pub(super) fn central(ui: &mut egui::Ui, state: &mut TeachState, s: &Snapshot, e
         t.detail = Some(d.clone());
         t.key = Some(key);
     }
+}
+
+/// The two runs' images side by side, each with its step, error and last patch.
+fn side_by_side(ui: &mut egui::Ui, state: &TeachState, d: &CompareDetail) {
+    let t = &state.compare_textures;
     let last = d.curve.last().copied();
     let side = ((ui.available_width() - 24.0) / 2.0)
         .min(ui.available_height() - 260.0)
@@ -274,6 +308,10 @@ pub(super) fn central(ui: &mut egui::Ui, state: &mut TeachState, s: &Snapshot, e
             });
         }
     });
+}
+
+/// Both runs' error against steps, on a log scale.
+fn error_curves(ui: &mut egui::Ui, d: &CompareDetail) {
     let pts = |f: fn(&super::compare::ComparePoint) -> f64| -> PlotPoints<'static> {
         d.curve
             .iter()

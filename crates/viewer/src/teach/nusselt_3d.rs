@@ -72,6 +72,23 @@ pub(super) fn draw(ui: &mut egui::Ui, d: &NusseltDetail, view: &mut View3d, side
     }
     let painter = ui.painter_at(rect);
     painter.rect_filled(rect, 4.0, egui::Color32::from_gray(24));
+    let (patch, scale) = scaled_patch(d);
+    let (origin, radius) = fit(view, &patch, rect, side);
+    let at = |p: DVec3| origin + project(view, p) * radius;
+    draw_hemisphere(&painter, &at);
+    draw_projections(&painter, &at, &patch);
+    painter.text(
+        rect.left_top() + egui::vec2(6.0, 4.0),
+        egui::Align2::LEFT_TOP,
+        format!("patch drawn ×{scale:.3} about the point (same projection); drag to turn"),
+        egui::FontId::proportional(11.0),
+        egui::Color32::from_gray(200),
+    );
+}
+
+/// The patch in the point's frame, scaled about the point so that its nearest corner lies
+/// at [`PATCH_DISTANCE`]; and the scale.
+fn scaled_patch(d: &NusseltDetail) -> (Vec<DVec3>, f64) {
     let corners: Vec<DVec3> = d
         .patch_local
         .iter()
@@ -86,8 +103,12 @@ pub(super) fn draw(ui: &mut egui::Ui, d: &NusseltDetail, view: &mut View3d, side
     } else {
         1.0
     };
-    let patch: Vec<DVec3> = corners.iter().map(|c| *c * scale).collect();
-    // Fit the hemisphere and the patch into the square (their screen bounds, centred).
+    (corners.iter().map(|c| *c * scale).collect(), scale)
+}
+
+/// Where the point is drawn and how many screen points a unit is, so that the hemisphere
+/// and the patch fit into the square (their screen bounds, centred).
+fn fit(view: &View3d, patch: &[DVec3], rect: egui::Rect, side: f32) -> (egui::Pos2, f32) {
     let (mut lo, mut hi) = (egui::Vec2::splat(f32::MAX), egui::Vec2::splat(f32::MIN));
     let ring = (0..36).map(|k| {
         let a = k as f64 / 36.0 * std::f64::consts::TAU;
@@ -101,10 +122,13 @@ pub(super) fn draw(ui: &mut egui::Ui, d: &NusseltDetail, view: &mut View3d, side
     let size = (hi - lo).max(egui::Vec2::splat(1e-3));
     let radius = ((side - 16.0) / size.x).min((side - 36.0) / size.y);
     let origin = rect.center() + egui::vec2(0.0, 10.0) - (lo + hi) * 0.5 * radius;
-    let at = |p: DVec3| origin + project(view, p) * radius;
-    let grey = egui::Color32::from_gray(110);
-    let thin = egui::Stroke::new(1.0, grey);
-    // The base disk and the hemisphere's wireframe (meridians and two parallels).
+    (origin, radius)
+}
+
+/// The base disk and the hemisphere's wireframe (meridians and two parallels); `at` puts
+/// a point of the frame on the screen.
+fn draw_hemisphere(painter: &egui::Painter, at: &impl Fn(DVec3) -> egui::Pos2) {
+    let thin = egui::Stroke::new(1.0, egui::Color32::from_gray(110));
     let circle = |z: f64, r: f64| -> Vec<egui::Pos2> {
         (0..72)
             .map(|k| {
@@ -132,8 +156,11 @@ pub(super) fn draw(ui: &mut egui::Ui, d: &NusseltDetail, view: &mut View3d, side
             .collect();
         painter.add(egui::Shape::line(pts, thin));
     }
-    // The outline subdivided, on the hemisphere (central projection, clamped to the
-    // horizon) and on the disk.
+}
+
+/// The patch's outline subdivided ([`STEPS`] points an edge) and projected centrally onto
+/// the hemisphere, clamped to the horizon.
+fn outline_on_sphere(patch: &[DVec3]) -> Vec<DVec3> {
     let n = patch.len();
     let mut on_sphere = Vec::with_capacity(n * STEPS);
     for k in 0..n {
@@ -148,6 +175,14 @@ pub(super) fn draw(ui: &mut egui::Ui, d: &NusseltDetail, view: &mut View3d, side
             on_sphere.push(h);
         }
     }
+    on_sphere
+}
+
+/// The patch, its projection on the hemisphere and that projection dropped onto the disk,
+/// with the rays from the point to the corners and the drop lines.
+fn draw_projections(painter: &egui::Painter, at: &impl Fn(DVec3) -> egui::Pos2, patch: &[DVec3]) {
+    let n = patch.len();
+    let on_sphere = outline_on_sphere(patch);
     let cyan = egui::Color32::from_rgb(0, 220, 255);
     let yellow = egui::Color32::from_rgb(255, 210, 60);
     let disk: Vec<egui::Pos2> = on_sphere
@@ -155,7 +190,7 @@ pub(super) fn draw(ui: &mut egui::Ui, d: &NusseltDetail, view: &mut View3d, side
         .map(|h| at(DVec3::new(h.x, h.y, 0.0)))
         .collect();
     fan(
-        &painter,
+        painter,
         &disk,
         egui::Color32::from_rgba_unmultiplied(0, 220, 255, 90),
         egui::Stroke::new(2.0, cyan),
@@ -170,13 +205,13 @@ pub(super) fn draw(ui: &mut egui::Ui, d: &NusseltDetail, view: &mut View3d, side
     }
     let sphere: Vec<egui::Pos2> = on_sphere.iter().map(|h| at(*h)).collect();
     fan(
-        &painter,
+        painter,
         &sphere,
         egui::Color32::from_rgba_unmultiplied(255, 210, 60, 110),
         egui::Stroke::new(2.0, yellow),
     );
     // Rays from the point to the patch's corners, and the patch.
-    for c in &patch {
+    for c in patch {
         painter.line_segment(
             [at(DVec3::ZERO), at(*c)],
             egui::Stroke::new(1.0, egui::Color32::from_gray(170)),
@@ -184,19 +219,12 @@ pub(super) fn draw(ui: &mut egui::Ui, d: &NusseltDetail, view: &mut View3d, side
     }
     let patch_pts: Vec<egui::Pos2> = patch.iter().map(|c| at(*c)).collect();
     fan(
-        &painter,
+        painter,
         &patch_pts,
         egui::Color32::from_rgba_unmultiplied(230, 230, 230, 70),
         egui::Stroke::new(2.0, egui::Color32::WHITE),
     );
     painter.circle_filled(at(DVec3::ZERO), 3.0, egui::Color32::RED);
-    painter.text(
-        rect.left_top() + egui::vec2(6.0, 4.0),
-        egui::Align2::LEFT_TOP,
-        format!("patch drawn ×{scale:.3} about the point (same projection); drag to turn"),
-        egui::FontId::proportional(11.0),
-        egui::Color32::from_gray(200),
-    );
 }
 
 #[cfg(test)]

@@ -8,6 +8,7 @@ use nusselt_core::scene::Rgb;
 use super::super::panels::Action;
 use super::super::snapshot::Snapshot;
 use super::super::solver_thread::Command;
+use super::step::StepDetail;
 use super::{TeachCommand, TeachState};
 
 fn rgb(c: Rgb) -> String {
@@ -20,6 +21,53 @@ pub(super) fn show(
     s: &Snapshot,
     actions: &mut Vec<Action>,
 ) {
+    step_buttons(ui, s, actions);
+    ui.checkbox(
+        &mut state.show_received,
+        "show what the last shot added (ΔB_j) instead of B",
+    );
+    if s.stats.solver != "shooting" {
+        ui.label(format!(
+            "Step mode explains shooting; the solver is {} (choose shooting in the solver panel).",
+            s.stats.solver
+        ));
+        return;
+    }
+    let Some(d) = s.teach_step.as_deref() else {
+        ui.label(format!(
+            "{} shots so far. Press \"Shoot once\": the shot's numbers appear here, the \
+             shooter turns yellow, and a click on a surface shows its element's numbers.",
+            s.stats.steps
+        ));
+        return;
+    };
+    ui.strong(format!("Shot {}: patch i = {}", d.step, d.shooter));
+    shooter_numbers(ui, d);
+    let n = d.received.len();
+    let f_sum: f64 = (0..n).map(|j| d.f_ij(j)).sum();
+    ui.label("2. A column of form factors from i to every element j:");
+    mono(ui, format!("Σ_j F_ij = {f_sum:.4} ({n} elements)"));
+    ui.label("3. Every receiver gains B_j += ρ_j ΔB_i F_ij A_i/A_j:");
+    let j = state
+        .element
+        .map(|e| e as usize)
+        .filter(|&e| e < n)
+        .or_else(|| d.top_receivers(1).first().copied());
+    if let Some(j) = j {
+        receiver_numbers(ui, d, j, state.element.is_some());
+    }
+    ambient_numbers(ui, d);
+    ui.separator();
+    largest_gains(ui, d);
+}
+
+/// One line of numbers, monospaced and wrapped.
+fn mono(ui: &mut egui::Ui, text: String) {
+    ui.add(egui::Label::new(egui::RichText::new(text).monospace()).wrap());
+}
+
+/// Shoot once, Back, Reset.
+fn step_buttons(ui: &mut egui::Ui, s: &Snapshot, actions: &mut Vec<Action>) {
     ui.horizontal(|ui| {
         if ui
             .button("Shoot once")
@@ -44,29 +92,10 @@ pub(super) fn show(
             actions.push(Action::Solver(Command::Reset));
         }
     });
-    ui.checkbox(
-        &mut state.show_received,
-        "show what the last shot added (ΔB_j) instead of B",
-    );
-    if s.stats.solver != "shooting" {
-        ui.label(format!(
-            "Step mode explains shooting; the solver is {} (choose shooting in the solver panel).",
-            s.stats.solver
-        ));
-        return;
-    }
-    let Some(d) = s.teach_step.as_deref() else {
-        ui.label(format!(
-            "{} shots so far. Press \"Shoot once\": the shot's numbers appear here, the \
-             shooter turns yellow, and a click on a surface shows its element's numbers.",
-            s.stats.steps
-        ));
-        return;
-    };
-    let mono = |ui: &mut egui::Ui, text: String| {
-        ui.add(egui::Label::new(egui::RichText::new(text).monospace()).wrap());
-    };
-    ui.strong(format!("Shot {}: patch i = {}", d.step, d.shooter));
+}
+
+/// 1: the shooter's unshot radiosity and power (and what overshooting adds).
+fn shooter_numbers(ui: &mut egui::Ui, d: &StepDetail) {
     ui.label("1. Find the patch with the most unshot power ΔB_i A_i:");
     mono(ui, format!("ΔB_i = {}", rgb(d.unshot)));
     mono(
@@ -83,43 +112,40 @@ pub(super) fn show(
             format!("shot = ΔB_i + ρ_i·ambient = {} (overshooting)", rgb(d.shot)),
         );
     }
-    let n = d.received.len();
-    let f_sum: f64 = (0..n).map(|j| d.f_ij(j)).sum();
-    ui.label("2. A column of form factors from i to every element j:");
-    mono(ui, format!("Σ_j F_ij = {f_sum:.4} ({n} elements)"));
-    ui.label("3. Every receiver gains B_j += ρ_j ΔB_i F_ij A_i/A_j:");
-    let j = state
-        .element
-        .map(|e| e as usize)
-        .filter(|&e| e < n)
-        .or_else(|| d.top_receivers(1).first().copied());
-    if let Some(j) = j {
-        let which = if state.element.is_some() {
-            "clicked"
-        } else {
-            "largest gain; click a surface for another"
-        };
-        mono(ui, format!("j = {j} ({which})"));
-        mono(
-            ui,
-            format!(
-                "ρ_j = {}  F_ij = {:.3e}  A_i/A_j = {:.3}",
-                rgb(d.element_rho[j]),
-                d.f_ij(j),
-                d.shooter_area / d.element_area[j]
-            ),
-        );
-        let formula = if d.overshoot {
-            "ρ_j (ΔB_i + ρ_i·ambient) F_ij A_i/A_j"
-        } else {
-            "ρ_j ΔB_i F_ij A_i/A_j"
-        };
-        mono(ui, format!("{formula} = {}", rgb(d.formula(j))));
-        mono(
-            ui,
-            format!("ΔB_j added by the solver = {}", rgb(d.received[j])),
-        );
-    }
+}
+
+/// 3, for receiver `j` (`clicked`, or the one with the largest gain): the formula with its
+/// numbers, and what the solver added.
+fn receiver_numbers(ui: &mut egui::Ui, d: &StepDetail, j: usize, clicked: bool) {
+    let which = if clicked {
+        "clicked"
+    } else {
+        "largest gain; click a surface for another"
+    };
+    mono(ui, format!("j = {j} ({which})"));
+    mono(
+        ui,
+        format!(
+            "ρ_j = {}  F_ij = {:.3e}  A_i/A_j = {:.3}",
+            rgb(d.element_rho[j]),
+            d.f_ij(j),
+            d.shooter_area / d.element_area[j]
+        ),
+    );
+    let formula = if d.overshoot {
+        "ρ_j (ΔB_i + ρ_i·ambient) F_ij A_i/A_j"
+    } else {
+        "ρ_j ΔB_i F_ij A_i/A_j"
+    };
+    mono(ui, format!("{formula} = {}", rgb(d.formula(j))));
+    mono(
+        ui,
+        format!("ΔB_j added by the solver = {}", rgb(d.received[j])),
+    );
+}
+
+/// 4: the ambient term and the unshot fraction before and after the shot.
+fn ambient_numbers(ui: &mut egui::Ui, d: &StepDetail) {
     ui.label("4. The ambient term shrinks:");
     mono(
         ui,
@@ -137,7 +163,10 @@ pub(super) fn show(
             100.0 * d.residual_after
         ),
     );
-    ui.separator();
+}
+
+/// The five receivers that gained most.
+fn largest_gains(ui: &mut egui::Ui, d: &StepDetail) {
     ui.label("Largest gains this shot:");
     egui::Grid::new("teach-receivers")
         .num_columns(3)
