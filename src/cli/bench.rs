@@ -57,6 +57,40 @@ pub struct BenchArgs {
     /// The Crytek atrium's OBJ for `sponza`.
     #[arg(long, default_value = "../shared/models/crytek_sponza/sponza.obj")]
     pub sponza: PathBuf,
+    /// Runs no benchmark: rewrites the generated figure tables in README.md and docs/*.md
+    /// (`<!-- bench:table NAME -->` regions) from the CSVs in `--out`. Run from the
+    /// repository root.
+    #[arg(long)]
+    pub doc: bool,
+    /// With `--doc`: writes nothing, and fails where a document differs from the CSVs.
+    #[arg(long, requires = "doc")]
+    pub check: bool,
+}
+
+/// Writes the `# command:` and `# date:` lines every bench CSV opens with, read by
+/// `nusselt bench --doc` for the line above each generated table.
+pub(super) fn provenance(csv: &mut dyn Write) -> std::io::Result<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    writeln!(csv, "# command: nusselt {}", args.join(" "))?;
+    writeln!(csv, "# date: {}", utc_date(std::time::SystemTime::now()))
+}
+
+/// `time`'s UTC calendar date as `YYYY-MM-DD` (days to civil date, H. Hinnant's algorithm).
+fn utc_date(time: std::time::SystemTime) -> String {
+    let secs = time
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    let z = (secs / 86_400) as i64 + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1_460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!("{year:04}-{month:02}-{day:02}")
 }
 
 /// Resets the process's peak resident memory (Linux: `5` to `/proc/self/clear_refs`), so
@@ -169,6 +203,9 @@ const SOLVERS: [(&str, SolverKind, bool); 8] = [
 ];
 
 pub fn run(args: &BenchArgs) -> Result<()> {
+    if args.doc {
+        return super::bench_doc::run(&args.out, std::path::Path::new("."), args.check);
+    }
     if !(args.seconds.is_finite() && args.seconds > 0.0) {
         anyhow::bail!("--seconds must be a positive number");
     }
@@ -214,6 +251,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         ))
     };
     if !cases.is_empty() {
+        provenance(&mut csv)?;
         writeln!(
             csv,
             "scene,solver,step,seconds,residual,error,elements,patches,matrix_mb"
@@ -400,6 +438,7 @@ fn live_edits(out: &std::path::Path) -> Result<()> {
     s.run(&converge, &never, &mut |_| {});
     let path = out.join("live_edits.csv");
     let mut csv = std::fs::File::create(&path)?;
+    provenance(&mut csv)?;
     writeln!(csv, "edit,edit_power_fraction,shots,seconds")?;
     println!(
         "\n| live edit (Cornell, default mesh) | edit's power / emitted | shots | seconds to 1 % of it |"
@@ -440,4 +479,19 @@ fn live_edits(out: &std::path::Path) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::utc_date;
+    use std::time::{Duration, UNIX_EPOCH};
+
+    #[test]
+    fn utc_dates() {
+        assert_eq!(utc_date(UNIX_EPOCH), "1970-01-01");
+        let day = |d: u64| utc_date(UNIX_EPOCH + Duration::from_secs(d * 86_400 + 3_600));
+        assert_eq!(day(20_792), "2026-12-05");
+        assert_eq!(day(11_016), "2000-02-29");
+        assert_eq!(day(11_017), "2000-03-01");
+    }
 }

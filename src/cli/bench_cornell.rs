@@ -225,6 +225,7 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
     let path = out.join("cornell_image.csv");
     let mut csv =
         std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+    super::bench::provenance(&mut csv)?;
     writeln!(csv, "group,label,elements,steps,seconds,image_error")?;
     for (g, l, n, k, t, e) in &rows {
         writeln!(csv, "{g},{l},{n},{k},{t:.4},{e:.5e}")?;

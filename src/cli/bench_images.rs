@@ -225,6 +225,7 @@ pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
     let path = out.join("ambient.csv");
     let mut csv =
         std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+    super::bench::provenance(&mut csv)?;
     writeln!(csv, "variant,step,seconds,residual,image_error")?;
     for (label, step, t, residual, e) in &rows {
         writeln!(csv, "{label},{step},{t:.5},{residual:.5e},{e:.5e}")?;

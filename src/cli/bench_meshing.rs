@@ -106,6 +106,7 @@ pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
     let mut csv = std::io::BufWriter::new(
         std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?,
     );
+    super::bench::provenance(&mut csv)?;
     writeln!(
         csv,
         "kind,setting,elements,seconds,error,seconds_direct,error_direct"

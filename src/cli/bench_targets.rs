@@ -144,6 +144,7 @@ pub fn targets(out: &Path, reference_path: &Path) -> Result<()> {
     };
 
     let mut csv = std::fs::File::create(out.join("targets.csv"))?;
+    super::bench::provenance(&mut csv)?;
     writeln!(
         csv,
         "kind,flags,runs,median_s,min_s,max_s,error,target_error,target_s"
