@@ -22,8 +22,11 @@ use nusselt_core::solver::DEFAULT_LINK_TOLERANCE;
 
 use super::bench_images::first_time_below;
 
+/// Writes one table from the CSVs in the folder it is given.
+type Table = fn(&Path) -> Result<String>;
+
 /// The tables a region can name, and the function that writes each from `bench/`.
-const TABLES: [(&str, fn(&Path) -> Result<String>); 12] = [
+const TABLES: [(&str, Table); 12] = [
     ("convergence", convergence),
     ("ambient", ambient),
     ("targets", targets),
@@ -251,7 +254,7 @@ fn thousands(n: u64) -> String {
     let digits = n.to_string();
     let mut out = String::new();
     for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i) % 3 == 0 {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
             out.push(',');
         }
         out.push(c);
@@ -389,8 +392,11 @@ struct Target {
     path_tracer: Option<(f64, bool)>,
 }
 
-/// `targets.csv`: the path tracer's `(seconds, error)` per spp, and the radiosity targets.
-fn load_targets(dir: &Path) -> Result<(Csv, Vec<(String, f64, f64)>, Vec<Target>)> {
+/// `targets.csv`'s path tracer runs as `(spp, seconds, error)`.
+type Traced = Vec<(String, f64, f64)>;
+
+/// `targets.csv`: the path tracer's runs, and the radiosity targets.
+fn load_targets(dir: &Path) -> Result<(Csv, Traced, Vec<Target>)> {
     let csv = Csv::load(dir, "targets")?;
     let mut traced = Vec::new();
     for r in csv.records() {
@@ -513,9 +519,11 @@ fn load_cornell_image(dir: &Path) -> Result<(Csv, Vec<CornellRow>)> {
     Ok((csv, rows))
 }
 
-/// Radiosity's (shooting, default mesh) and the path tracer's time to each error, as
-/// `(limit, radiosity, path tracer)`.
-fn cornell_image_times(rows: &[CornellRow]) -> Vec<(f64, Option<f64>, Option<(f64, bool)>)> {
+/// An error, radiosity's time to it and the path tracer's (extrapolated or not).
+type TimesTo = (f64, Option<f64>, Option<(f64, bool)>);
+
+/// Radiosity's (shooting, default mesh) and the path tracer's time to each error.
+fn cornell_image_times(rows: &[CornellRow]) -> Vec<TimesTo> {
     let shooting: Vec<(f64, f64)> = rows
         .iter()
         .filter(|r| r.0 == "solver" && r.1 == "shooting")
@@ -829,7 +837,7 @@ mod tests {
         let doc = Path::new("d.md");
         let dir = Path::new("/nonexistent");
         let text = "a\n<!-- bench:table nothing -->\nold\n<!-- /bench:table -->\nb\n";
-        let err = rewrite(text, doc, dir).err().expect("unknown name");
+        let err = rewrite(text, doc, dir).expect_err("unknown name");
         assert!(err.to_string().contains("d.md:2"), "{err}");
         let (same, n) = rewrite("no regions\n", doc, dir).expect("no regions");
         assert_eq!((same.as_str(), n), ("no regions\n", 0));
