@@ -57,6 +57,40 @@ pub struct BenchArgs {
     /// The Crytek atrium's OBJ for `sponza`.
     #[arg(long, default_value = "../shared/models/crytek_sponza/sponza.obj")]
     pub sponza: PathBuf,
+    /// Runs no benchmark: rewrites the generated figure tables in README.md and docs/*.md
+    /// (`<!-- bench:table NAME -->` regions) from the CSVs in `--out`. Run from the
+    /// repository root.
+    #[arg(long)]
+    pub doc: bool,
+    /// With `--doc`: writes nothing, and fails where a document differs from the CSVs.
+    #[arg(long, requires = "doc")]
+    pub check: bool,
+}
+
+/// Writes the `# command:` and `# date:` lines every bench CSV opens with, read by
+/// `nusselt bench --doc` for the line above each generated table.
+pub(super) fn provenance(csv: &mut dyn Write) -> std::io::Result<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    writeln!(csv, "# command: nusselt {}", args.join(" "))?;
+    writeln!(csv, "# date: {}", utc_date(std::time::SystemTime::now()))
+}
+
+/// `time`'s UTC calendar date as `YYYY-MM-DD` (days to civil date, H. Hinnant's algorithm).
+fn utc_date(time: std::time::SystemTime) -> String {
+    let secs = time
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    let z = (secs / 86_400) as i64 + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1_460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!("{year:04}-{month:02}-{day:02}")
 }
 
 /// Resets the process's peak resident memory (Linux: `5` to `/proc/self/clear_refs`), so
@@ -169,12 +203,40 @@ const SOLVERS: [(&str, SolverKind, bool); 8] = [
 ];
 
 pub fn run(args: &BenchArgs) -> Result<()> {
+    if args.doc {
+        return super::bench_doc::run(&args.out, std::path::Path::new("."), args.check);
+    }
     if !(args.seconds.is_finite() && args.seconds > 0.0) {
         anyhow::bail!("--seconds must be a positive number");
     }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let wanted = |name: &str| args.only.as_ref().is_none_or(|o| name.contains(o.as_str()));
+    let cases = convergence_cases(&wanted)?;
+    let path = args.out.join("convergence.csv");
+    let mut csv = convergence_csv(&path, !cases.is_empty())?;
+    let mut plots: Vec<(String, Vec<Series>)> = Vec::new();
+    for case in &cases {
+        let mut case_series = Vec::new();
+        for (label, kind, overshoot) in SOLVERS {
+            if let Some(series) = convergence_run(case, label, kind, overshoot, args, &mut csv)? {
+                case_series.push(series);
+            }
+        }
+        plots.push((case.name.clone(), case_series));
+    }
+    csv.flush()?;
+    convergence_plots(&args.out, plots)?;
+    image_benches(args, &wanted)?;
+    if !cases.is_empty() {
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// The scenes with a known answer that `--only` selects: the furnace, the cube (each with
+/// its fine reference solve) and the Cornell box.
+fn convergence_cases(wanted: &dyn Fn(&str) -> bool) -> Result<Vec<Case>> {
     let mut cases = Vec::new();
     for rho in [0.5, 0.9, 0.99, 0.999] {
         let name = format!("furnace-{rho}");
@@ -204,127 +266,179 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             truth: Truth::None,
         });
     }
-    let path = args.out.join("convergence.csv");
-    // Only the image benchmarks selected: leave an earlier convergence.csv alone.
-    let mut csv: Box<dyn Write> = if cases.is_empty() {
-        Box::new(std::io::sink())
-    } else {
-        Box::new(std::io::BufWriter::new(
-            std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?,
-        ))
+    Ok(cases)
+}
+
+/// `convergence.csv` with its header, and the summary table's header on stdout; with no
+/// case selected (only the image benchmarks), a sink that leaves an earlier file alone.
+fn convergence_csv(path: &std::path::Path, any: bool) -> Result<Box<dyn Write>> {
+    if !any {
+        return Ok(Box::new(std::io::sink()));
+    }
+    let mut csv: Box<dyn Write> = Box::new(std::io::BufWriter::new(
+        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
+    ));
+    provenance(&mut csv)?;
+    writeln!(
+        csv,
+        "scene,solver,step,seconds,residual,error,elements,patches,matrix_mb"
+    )?;
+    println!(
+        "| scene | solver | elements | patches | steps | seconds | residual | error | s to 1 % | s to 0.1 % | matrix MB | peak RSS MB |"
+    );
+    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    Ok(csv)
+}
+
+/// What one solver's run on one case logged: the CSV rows (one each time the residual
+/// falls by 20 %, and the last), the plot's points, and the times from which the error
+/// stays below 1 % and 0.1 %.
+struct Logged {
+    rows: Vec<String>,
+    points: Vec<(f64, f64)>,
+    to_1: Option<f64>,
+    to_01: Option<f64>,
+}
+
+/// One solver on one case: its CSV rows, its summary row on stdout, and its plot series;
+/// `None` (after a line saying why) where the solver refuses the scene.
+fn convergence_run(
+    case: &Case,
+    label: &str,
+    kind: SolverKind,
+    overshoot: bool,
+    args: &BenchArgs,
+    csv: &mut dyn Write,
+) -> Result<Option<Series>> {
+    let config = SolverConfig {
+        shooting: nusselt_core::solver::ShootingOptions {
+            overshoot,
+            ..Default::default()
+        },
+        ..Default::default()
     };
-    if !cases.is_empty() {
-        writeln!(
-            csv,
-            "scene,solver,step,seconds,residual,error,elements,patches,matrix_mb"
-        )?;
-        println!(
-            "| scene | solver | elements | patches | steps | seconds | residual | error | s to 1 % | s to 0.1 % | matrix MB | peak RSS MB |"
-        );
-        println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-    }
-    let never = AtomicBool::new(false);
-    let mut plots: Vec<(String, Vec<Series>)> = Vec::new();
-    for case in &cases {
-        let mut case_series = Vec::new();
-        for (label, kind, overshoot) in SOLVERS {
-            let config = SolverConfig {
-                shooting: nusselt_core::solver::ShootingOptions {
-                    overshoot,
-                    ..Default::default()
-                },
-                ..Default::default()
-            };
-            reset_peak();
-            let start = Instant::now();
-            let problem = Problem::new(case.scene.clone(), config)?;
-            let mut solver = match kind.build(problem) {
-                Ok(s) => s,
-                Err(e) => {
-                    println!("| {} | {label} | refused: {e} |", case.name);
-                    continue;
-                }
-            };
-            let setup = start.elapsed().as_secs_f64();
-            let (mut to_1, mut to_01) = (None, None);
-            let stop = StopCriteria {
-                residual: 1e-6,
-                max_steps: None,
-                max_seconds: Some(args.seconds),
-                tolerance: None,
-            };
-            let mut rows: Vec<String> = Vec::new();
-            let (elements, patches) = (
-                solver.problem().mesh.elements.len(),
-                solver.problem().mesh.patches.len(),
-            );
-            // Log-spaced rows: one each time the residual falls by 20 %, and the last.
-            let mut logged = f64::INFINITY;
-            let mut last_row = String::new();
-            let mut points = Vec::new();
-            run_solver(solver.as_mut(), &stop, &never, &mut |r, s| {
-                let t = setup + r.seconds;
-                let err = error(&case.truth, s);
-                if r.residual <= 0.8 * logged || r.residual <= stop.residual {
-                    points.push((t, err.unwrap_or(r.residual)));
-                }
-                // The time from which the error stays below 1 % (0.1 %): a later step
-                // above it (the error crossing zero on its way) resets the time.
-                if let Some(e) = err {
-                    for (limit, at) in [(1e-2, &mut to_1), (1e-3, &mut to_01)] {
-                        if e > limit {
-                            *at = None;
-                        } else if at.is_none() {
-                            *at = Some(t);
-                        }
-                    }
-                }
-                let row = format!(
-                    "{},{label},{},{t:.6},{:.6e},{},{elements},{patches},{:.3}",
-                    case.name,
-                    r.step,
-                    r.residual,
-                    err.map(|e| format!("{e:.6e}")).unwrap_or_default(),
-                    s.matrix_bytes() as f64 / (1 << 20) as f64
-                );
-                if r.residual <= 0.8 * logged {
-                    logged = r.residual;
-                    rows.push(row);
-                    last_row.clear();
-                } else {
-                    last_row = row;
-                }
-            });
-            if !last_row.is_empty() {
-                rows.push(last_row);
-            }
-            for row in &rows {
-                writeln!(csv, "{row}")?;
-            }
-            case_series.push(Series {
-                label: label.to_string(),
-                points,
-                markers: false,
-            });
-            let fmt = |x: Option<f64>| x.map(|v| format!("{v:.3}")).unwrap_or("–".into());
-            println!(
-                "| {} | {label} | {elements} | {patches} | {} | {:.3} | {:.1e} | {} | {} | {} | {:.1} | {} |",
-                case.name,
-                solver.steps(),
-                start.elapsed().as_secs_f64(),
-                solver.residual(),
-                error(&case.truth, solver.as_ref())
-                    .map(|e| format!("{e:.1e}"))
-                    .unwrap_or("–".into()),
-                fmt(to_1),
-                fmt(to_01),
-                solver.matrix_bytes() as f64 / (1 << 20) as f64,
-                peak_mb().map(|m| format!("{m:.0}")).unwrap_or("–".into()),
-            );
+    reset_peak();
+    let start = Instant::now();
+    let problem = Problem::new(case.scene.clone(), config)?;
+    let mut solver = match kind.build(problem) {
+        Ok(s) => s,
+        Err(e) => {
+            println!("| {} | {label} | refused: {e} |", case.name);
+            return Ok(None);
         }
-        plots.push((case.name.clone(), case_series));
+    };
+    let setup = start.elapsed().as_secs_f64();
+    let logged = solve_logged(case, label, solver.as_mut(), setup, args.seconds);
+    for row in &logged.rows {
+        writeln!(csv, "{row}")?;
     }
-    csv.flush()?;
+    print_convergence_row(case, label, solver.as_ref(), start, &logged);
+    Ok(Some(Series {
+        label: label.to_string(),
+        points: logged.points,
+        markers: false,
+    }))
+}
+
+/// Runs `solver` to a residual of 1e-6 or `seconds`, logging as [`Logged`] says; times
+/// count from the start of setup (`setup` seconds before the solve).
+fn solve_logged(
+    case: &Case,
+    label: &str,
+    solver: &mut dyn Solver,
+    setup: f64,
+    seconds: f64,
+) -> Logged {
+    let (mut to_1, mut to_01) = (None, None);
+    let stop = StopCriteria {
+        residual: 1e-6,
+        max_steps: None,
+        max_seconds: Some(seconds),
+        tolerance: None,
+    };
+    let mut rows: Vec<String> = Vec::new();
+    let (elements, patches) = (
+        solver.problem().mesh.elements.len(),
+        solver.problem().mesh.patches.len(),
+    );
+    // Log-spaced rows: one each time the residual falls by 20 %, and the last.
+    let mut logged = f64::INFINITY;
+    let mut last_row = String::new();
+    let mut points = Vec::new();
+    let never = AtomicBool::new(false);
+    run_solver(solver, &stop, &never, &mut |r, s| {
+        let t = setup + r.seconds;
+        let err = error(&case.truth, s);
+        if r.residual <= 0.8 * logged || r.residual <= stop.residual {
+            points.push((t, err.unwrap_or(r.residual)));
+        }
+        // The time from which the error stays below 1 % (0.1 %): a later step
+        // above it (the error crossing zero on its way) resets the time.
+        if let Some(e) = err {
+            for (limit, at) in [(1e-2, &mut to_1), (1e-3, &mut to_01)] {
+                if e > limit {
+                    *at = None;
+                } else if at.is_none() {
+                    *at = Some(t);
+                }
+            }
+        }
+        let row = format!(
+            "{},{label},{},{t:.6},{:.6e},{},{elements},{patches},{:.3}",
+            case.name,
+            r.step,
+            r.residual,
+            err.map(|e| format!("{e:.6e}")).unwrap_or_default(),
+            s.matrix_bytes() as f64 / (1 << 20) as f64
+        );
+        if r.residual <= 0.8 * logged {
+            logged = r.residual;
+            rows.push(row);
+            last_row.clear();
+        } else {
+            last_row = row;
+        }
+    });
+    if !last_row.is_empty() {
+        rows.push(last_row);
+    }
+    Logged {
+        rows,
+        points,
+        to_1,
+        to_01,
+    }
+}
+
+/// One row of the summary table on stdout.
+fn print_convergence_row(
+    case: &Case,
+    label: &str,
+    solver: &dyn Solver,
+    start: Instant,
+    logged: &Logged,
+) {
+    let fmt = |x: Option<f64>| x.map(|v| format!("{v:.3}")).unwrap_or("–".into());
+    println!(
+        "| {} | {label} | {} | {} | {} | {:.3} | {:.1e} | {} | {} | {} | {:.1} | {} |",
+        case.name,
+        solver.problem().mesh.elements.len(),
+        solver.problem().mesh.patches.len(),
+        solver.steps(),
+        start.elapsed().as_secs_f64(),
+        solver.residual(),
+        error(&case.truth, solver)
+            .map(|e| format!("{e:.1e}"))
+            .unwrap_or("–".into()),
+        fmt(logged.to_1),
+        fmt(logged.to_01),
+        solver.matrix_bytes() as f64 / (1 << 20) as f64,
+        peak_mb().map(|m| format!("{m:.0}")).unwrap_or("–".into()),
+    );
+}
+
+/// `convergence-NAME.{svg,png}`: error (residual for the Cornell box) against time.
+fn convergence_plots(out: &std::path::Path, plots: Vec<(String, Vec<Series>)>) -> Result<()> {
     for (name, series) in plots {
         let measure = if name.starts_with("cornell") {
             "residual"
@@ -332,7 +446,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             "largest relative error"
         };
         plot::write(
-            &args.out.join(format!("convergence-{name}")),
+            &out.join(format!("convergence-{name}")),
             &Plot {
                 title: &format!("{name}: {measure} against time"),
                 x_label: "seconds (mesh, form factors, solve)",
@@ -341,6 +455,11 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             },
         )?;
     }
+    Ok(())
+}
+
+/// The benchmarks with their own files (`bench_*.rs`) that `--only` selects, in order.
+fn image_benches(args: &BenchArgs, wanted: &dyn Fn(&str) -> bool) -> Result<()> {
     if wanted("tworooms") {
         super::bench_images::ambient(&args.out, args.seconds)?;
     }
@@ -373,9 +492,6 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     if wanted("edit") || wanted("cornell") {
         live_edits(&args.out)?;
     }
-    if !cases.is_empty() {
-        eprintln!("wrote {}", path.display());
-    }
     Ok(())
 }
 
@@ -403,6 +519,7 @@ fn live_edits(out: &std::path::Path) -> Result<()> {
     s.run(&converge, &never, &mut |_| {});
     let path = out.join("live_edits.csv");
     let mut csv = std::fs::File::create(&path)?;
+    provenance(&mut csv)?;
     writeln!(csv, "edit,edit_power_fraction,shots,seconds")?;
     println!(
         "\n| live edit (Cornell, default mesh) | edit's power / emitted | shots | seconds to 1 % of it |"
@@ -443,4 +560,19 @@ fn live_edits(out: &std::path::Path) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::utc_date;
+    use std::time::{Duration, UNIX_EPOCH};
+
+    #[test]
+    fn utc_dates() {
+        assert_eq!(utc_date(UNIX_EPOCH), "1970-01-01");
+        let day = |d: u64| utc_date(UNIX_EPOCH + Duration::from_secs(d * 86_400 + 3_600));
+        assert_eq!(day(20_792), "2026-12-05");
+        assert_eq!(day(11_016), "2000-02-29");
+        assert_eq!(day(11_017), "2000-03-01");
+    }
 }

@@ -44,6 +44,7 @@ pub fn cornell(out: &Path, reference_path: &Path) -> Result<()> {
     let path = out.join("hierarchical.csv");
     let mut csv =
         std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+    super::bench::provenance(&mut csv)?;
     writeln!(
         csv,
         "solver,link_tolerance,elements,steps,solve_seconds,image_error,stored_mb,peak_rss_mb,report"
@@ -122,6 +123,7 @@ pub fn large(out: &Path, cornell_reference: &Path, gallery_reference: &Path) -> 
     let path = out.join("large.csv");
     let mut csv =
         std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+    super::bench::provenance(&mut csv)?;
     writeln!(
         csv,
         "scene,solver,elements,steps,seconds_to_1pc,seconds,residual,image_error,stored_mb,peak_rss_mb,report"

@@ -105,17 +105,27 @@ pub fn meshed(
     })
 }
 
+/// One row of `ambient.csv`: variant, step, seconds, residual, image error.
+type AmbientRow = (String, usize, f64, f64, f64);
+
+/// What the display-correction runs are judged against: the same mesh converged.
+struct Converged<'a> {
+    bvh: &'a nusselt_core::geometry::Bvh,
+    reference: &'a Image,
+    mask: &'a [bool],
+    seconds: f64,
+}
+
 /// The display-correction benchmark on `tworooms`; writes `ambient.csv` and the plot.
 pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
     let scene = Scene::builtin("tworooms", &LoadOptions::default())?;
     eprintln!("tworooms: converged reference…");
     let mut reference_solver = ProgressiveSolver::new(scene.clone(), SolverConfig::default())?;
-    let never = AtomicBool::new(false);
     let converge = StopCriteria {
         residual: 1e-6,
         ..Default::default()
     };
-    reference_solver.run(&converge, &never, &mut |_| {});
+    reference_solver.run(&converge, &AtomicBool::new(false), &mut |_| {});
     let bvh = render::display_bvh(&scene, reference_solver.mesh());
     let reference = render_elements(
         reference_solver.problem(),
@@ -125,22 +135,49 @@ pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
     );
     let camera = render::view::default_camera(&scene);
     let mask = render::error_mask(&scene, &camera, 256, 256);
-    let mut rows: Vec<(String, usize, f64, f64, f64)> = Vec::new();
+    let converged = Converged {
+        bvh: &bvh,
+        reference: &reference,
+        mask: &mask,
+        seconds,
+    };
+    let mut rows = shooting_rows(&scene, &converged)?;
+    rows.extend(gauss_seidel_rows(&scene, &converged)?);
+    write_ambient_csv(out, &rows)?;
+    let elements = reference_solver.mesh().elements.len();
+    let series = print_ambient_table(&rows, elements);
+    plot::write(
+        &out.join("ambient"),
+        &Plot {
+            title: "Two rooms, unlit one seen: image error from dark",
+            x_label: "seconds (mesh, form factors, solve)",
+            y_label: "relative RMS image error",
+            series,
+        },
+    )?;
+    Ok(())
+}
 
+/// Shooting from dark, stepped by hand, the image error of each display correction (none,
+/// global, regional) at log-spaced shot counts and at the end.
+fn shooting_rows(scene: &Scene, converged: &Converged) -> Result<Vec<AmbientRow>> {
+    let never = AtomicBool::new(false);
+    let mut rows = Vec::new();
     let start = Instant::now();
     let mut shooting = ProgressiveSolver::new(scene.clone(), SolverConfig::default())?;
     let setup = start.elapsed().as_secs_f64();
     let mut rec = Recorder {
-        reference: &reference,
-        mask: &mask,
+        reference: converged.reference,
+        mask: converged.mask,
         paused: 0.0,
         next: 1,
     };
     let stop = StopCriteria {
         residual: 1e-4,
-        max_seconds: Some(seconds),
+        max_seconds: Some(converged.seconds),
         ..Default::default()
     };
+    let bvh = converged.bvh;
     // Step by hand: `run`'s callback cannot borrow the solver to render it.
     let run_start = Instant::now();
     loop {
@@ -152,19 +189,19 @@ pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
             let global = rec.error(&render_elements(
                 shooting.problem(),
                 &shooting.element_radiance_global_ambient(),
-                &bvh,
+                bvh,
                 4,
             ));
             let none = rec.error(&render_elements(
                 shooting.problem(),
                 shooting.radiosity(),
-                &bvh,
+                bvh,
                 4,
             ));
             let regional = rec.error(&render_elements(
                 shooting.problem(),
                 &shooting.display_radiance(),
-                &bvh,
+                bvh,
                 4,
             ));
             for (label, e) in [
@@ -177,61 +214,77 @@ pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
             rec.paused += t0.elapsed().as_secs_f64();
         }
         if shooting.unshot_fraction() <= stop.residual
-            || run_start.elapsed().as_secs_f64() - rec.paused > seconds
+            || run_start.elapsed().as_secs_f64() - rec.paused > converged.seconds
             || shooting.shoot(&never).is_none()
         {
             break;
         }
     }
+    Ok(rows)
+}
 
-    // Gauss-Seidel on the same mesh: nothing but the light until its matrix is complete.
+/// Gauss-Seidel on the same mesh: nothing but the light until its matrix is complete.
+fn gauss_seidel_rows(scene: &Scene, converged: &Converged) -> Result<Vec<AmbientRow>> {
     let start = Instant::now();
     let mut gs =
         SolverKind::GaussSeidel.build(Problem::new(scene.clone(), SolverConfig::default())?)?;
     let setup = start.elapsed().as_secs_f64();
     let mut rec = Recorder {
-        reference: &reference,
-        mask: &mask,
+        reference: converged.reference,
+        mask: converged.mask,
         paused: 0.0,
         next: 1,
     };
     let gs_stop = StopCriteria {
         residual: 1e-4,
-        max_seconds: Some(seconds),
+        max_seconds: Some(converged.seconds),
         ..Default::default()
     };
     let mut gs_rows = Vec::new();
-    run_solver(gs.as_mut(), &gs_stop, &never, &mut |r, s| {
-        if rec.due(r.step) || r.residual <= gs_stop.residual {
-            let t0 = Instant::now();
-            let e = rec.error(&render_elements(
-                s.problem(),
-                &s.display_radiance(),
-                &bvh,
-                4,
-            ));
-            gs_rows.push((
-                "gauss-seidel".to_string(),
-                r.step,
-                setup + r.seconds - rec.paused,
-                r.residual,
-                e,
-            ));
-            rec.paused += t0.elapsed().as_secs_f64();
-        }
-    });
-    rows.extend(gs_rows);
+    run_solver(
+        gs.as_mut(),
+        &gs_stop,
+        &AtomicBool::new(false),
+        &mut |r, s| {
+            if rec.due(r.step) || r.residual <= gs_stop.residual {
+                let t0 = Instant::now();
+                let e = rec.error(&render_elements(
+                    s.problem(),
+                    &s.display_radiance(),
+                    converged.bvh,
+                    4,
+                ));
+                gs_rows.push((
+                    "gauss-seidel".to_string(),
+                    r.step,
+                    setup + r.seconds - rec.paused,
+                    r.residual,
+                    e,
+                ));
+                rec.paused += t0.elapsed().as_secs_f64();
+            }
+        },
+    );
+    Ok(gs_rows)
+}
 
+fn write_ambient_csv(out: &Path, rows: &[AmbientRow]) -> Result<()> {
     let path = out.join("ambient.csv");
     let mut csv =
         std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+    super::bench::provenance(&mut csv)?;
     writeln!(csv, "variant,step,seconds,residual,image_error")?;
-    for (label, step, t, residual, e) in &rows {
+    for (label, step, t, residual, e) in rows {
         writeln!(csv, "{label},{step},{t:.5},{residual:.5e},{e:.5e}")?;
     }
+    Ok(())
+}
+
+/// The table on stdout (residual and error after 1 s and 2 s, time to 10 %), and the plot's
+/// curve of each variant.
+fn print_ambient_table(rows: &[AmbientRow], elements: usize) -> Vec<Series> {
     println!(
-        "\n| tworooms (unlit room, {} elements) | after 1 s: residual | image error | after 2 s: image error | s to 10 % |",
-        reference_solver.mesh().elements.len()
+        "\n| tworooms (unlit room, {elements} elements) | after 1 s: residual | image error | after 2 s: image error | s to 10 % |"
     );
     println!("|---|---:|---:|---:|---:|");
     let labels = [
@@ -245,7 +298,7 @@ pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
         let run: Vec<_> = rows.iter().filter(|r| r.0 == label).collect();
         let at = |limit: f64| run.iter().rev().find(|r| r.2 <= limit);
         let to_10 = first_time_below(run.iter().map(|r| (r.2, r.4)), 0.1);
-        let fmt = |r: Option<&&(String, usize, f64, f64, f64)>, k: usize| {
+        let fmt = |r: Option<&&AmbientRow>, k: usize| {
             r.map(|r| format!("{:.3}", if k == 3 { r.3 } else { r.4 }))
                 .unwrap_or("–".into())
         };
@@ -262,16 +315,7 @@ pub fn ambient(out: &Path, seconds: f64) -> Result<()> {
             markers: false,
         });
     }
-    plot::write(
-        &out.join("ambient"),
-        &Plot {
-            title: "Two rooms, unlit one seen: image error from dark",
-            x_label: "seconds (mesh, form factors, solve)",
-            y_label: "relative RMS image error",
-            series,
-        },
-    )?;
-    Ok(())
+    series
 }
 
 /// The time from which the error stays at or below `limit`.

@@ -28,6 +28,14 @@ struct Row {
     direct: (f64, f64),
 }
 
+/// What every mesh is measured against, and how it is rendered.
+struct Setup {
+    scene: Scene,
+    reference: Image,
+    mask: Vec<bool>,
+    settings: RenderSettings,
+}
+
 pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
     let reference = Image::load_pfm(reference_path)
         .with_context(|| format!("meshing: the reference {}", reference_path.display()))?;
@@ -42,38 +50,61 @@ pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
         seed: 1,
         edge_spp: nusselt_core::render::DEFAULT_EDGE_SPP,
     };
-    let never = AtomicBool::new(false);
-    let measure = |kind: &'static str,
-                   label: String,
-                   config: SolverConfig,
-                   adaptive: Option<f64>|
-     -> Result<Row> {
-        eprintln!("meshing: {kind} {label}…");
-        let start = Instant::now();
-        let mut s = super::bench_images::meshed(&scene, config, adaptive)?;
-        run_solver(s.as_mut(), &StopCriteria::default(), &never, &mut |_, _| {});
-        let solved = start.elapsed().as_secs_f64();
-        let radiance = s.display_radiance();
-        let bvh = render::display_bvh(&scene, &s.problem().mesh);
-        let image = render_elements(s.problem(), &radiance, &bvh, settings.spp);
-        let vertex = (
-            start.elapsed().as_secs_f64(),
-            render::relative_rms(&image, &reference, &mask)?,
-        );
-        let t = Instant::now();
-        let image = render::direct::render_solution(s.problem(), &radiance, &settings);
-        let direct = (
-            solved + t.elapsed().as_secs_f64(),
-            render::relative_rms(&image, &reference, &mask)?,
-        );
-        Ok(Row {
-            kind,
-            label,
-            elements: s.problem().mesh.elements.len(),
-            vertex,
-            direct,
-        })
+    let setup = Setup {
+        scene,
+        reference,
+        mask,
+        settings,
     };
+    let rows = measure_all(&setup)?;
+    write_csv_and_table(out, &rows)?;
+    write_plot(out, &rows)
+}
+
+/// One mesh solved to the default stop, then rendered interpolated and by the direct pass;
+/// seconds are whole (start, mesh, solve, render).
+fn measure(
+    setup: &Setup,
+    kind: &'static str,
+    label: String,
+    config: SolverConfig,
+    adaptive: Option<f64>,
+) -> Result<Row> {
+    let (reference, mask, settings) = (&setup.reference, &setup.mask, &setup.settings);
+    eprintln!("meshing: {kind} {label}…");
+    let start = Instant::now();
+    let mut s = super::bench_images::meshed(&setup.scene, config, adaptive)?;
+    run_solver(
+        s.as_mut(),
+        &StopCriteria::default(),
+        &AtomicBool::new(false),
+        &mut |_, _| {},
+    );
+    let solved = start.elapsed().as_secs_f64();
+    let radiance = s.display_radiance();
+    let bvh = render::display_bvh(&setup.scene, &s.problem().mesh);
+    let image = render_elements(s.problem(), &radiance, &bvh, settings.spp);
+    let vertex = (
+        start.elapsed().as_secs_f64(),
+        render::relative_rms(&image, reference, mask)?,
+    );
+    let t = Instant::now();
+    let image = render::direct::render_solution(s.problem(), &radiance, settings);
+    let direct = (
+        solved + t.elapsed().as_secs_f64(),
+        render::relative_rms(&image, reference, mask)?,
+    );
+    Ok(Row {
+        kind,
+        label,
+        elements: s.problem().mesh.elements.len(),
+        vertex,
+        direct,
+    })
+}
+
+/// Uniform and discontinuity meshes at each budget, then adaptive meshes from coarser ones.
+fn measure_all(setup: &Setup) -> Result<Vec<Row>> {
     let mut rows = Vec::new();
     for budget in [2_500, 5_000, 10_000, 20_000, 40_000] {
         for (kind, discontinuity) in [("uniform", false), ("discontinuity", true)] {
@@ -82,7 +113,13 @@ pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
                 discontinuity,
                 ..Default::default()
             };
-            rows.push(measure(kind, format!("budget {budget}"), config, None)?);
+            rows.push(measure(
+                setup,
+                kind,
+                format!("budget {budget}"),
+                config,
+                None,
+            )?);
         }
     }
     for (budget, tolerance) in [
@@ -100,12 +137,18 @@ pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
             ..Default::default()
         };
         let label = format!("budget {budget}, --adaptive {tolerance}");
-        rows.push(measure("adaptive", label, config, Some(tolerance))?);
+        rows.push(measure(setup, "adaptive", label, config, Some(tolerance))?);
     }
+    Ok(rows)
+}
+
+/// `meshing.csv`, and the same rows as a table on stdout.
+fn write_csv_and_table(out: &Path, rows: &[Row]) -> Result<()> {
     let path = out.join("meshing.csv");
     let mut csv = std::io::BufWriter::new(
         std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?,
     );
+    super::bench::provenance(&mut csv)?;
     writeln!(
         csv,
         "kind,setting,elements,seconds,error,seconds_direct,error_direct"
@@ -114,7 +157,7 @@ pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
         "\n| meshing | setting | elements | s | error | s, direct pass | error, direct pass |"
     );
     println!("|---|---|---:|---:|---:|---:|---:|");
-    for r in &rows {
+    for r in rows {
         writeln!(
             csv,
             "{},{},{},{:.3},{:.5},{:.3},{:.5}",
@@ -132,6 +175,12 @@ pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
         );
     }
     csv.flush()?;
+    Ok(())
+}
+
+/// `cornell_meshing.{svg,png}`: error against elements, each kind interpolated and with the
+/// direct pass.
+fn write_plot(out: &Path, rows: &[Row]) -> Result<()> {
     let series = |kind: &str, direct: bool| -> Series {
         Series {
             label: format!("{kind}{}", if direct { " + direct pass" } else { "" }),

@@ -80,6 +80,7 @@ pub fn specular(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
     let mut w = std::io::BufWriter::new(
         std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?,
     );
+    super::bench::provenance(&mut w)?;
     writeln!(
         w,
         "method,setting,seconds,relative_rms,relative_rms_without_caustics"

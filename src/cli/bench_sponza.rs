@@ -32,6 +32,7 @@ pub fn sponza(out: &Path, model: &Path) -> Result<()> {
     let exe = std::env::current_exe().context("finding the nusselt executable")?;
     let path = out.join("sponza.csv");
     let mut csv = std::fs::File::create(&path)?;
+    super::bench::provenance(&mut csv)?;
     writeln!(
         csv,
         "run,elements,load_s,mesh_s,textures_s,solve_s,steps,shots_per_s,unshot,render_s,total_s,peak_mb"

@@ -127,6 +127,12 @@ fn measure(
     Ok(Measured { seconds, error })
 }
 
+/// A radiosity target's measurement with its fastest and slowest run.
+type TargetRun = (&'static Target, Measured, f64, f64);
+
+/// Judges an image: its relative RMS error against the reference.
+type Judge<'a> = &'a dyn Fn(&Image) -> Result<f64>;
+
 pub fn targets(out: &Path, reference_path: &Path) -> Result<()> {
     let reference = Image::load_pfm(reference_path)
         .with_context(|| format!("targets: the reference {}", reference_path.display()))?;
@@ -136,24 +142,42 @@ pub fn targets(out: &Path, reference_path: &Path) -> Result<()> {
     let judge = |image: &Image| Ok(render::relative_rms(image, &reference, &mask)?);
     let exe = std::env::current_exe().context("finding the nusselt executable")?;
     let image: PathBuf = out.join("targets_image.pfm");
-    let base = |command: &str| -> Vec<String> {
-        [command, "--builtin", "cornell"]
-            .iter()
-            .map(|s| s.to_string())
-            .collect()
-    };
 
     let mut csv = std::fs::File::create(out.join("targets.csv"))?;
+    super::bench::provenance(&mut csv)?;
     writeln!(
         csv,
         "kind,flags,runs,median_s,min_s,max_s,error,target_error,target_s"
     )?;
+    let radiosity = radiosity_runs(&exe, &image, &judge, &mut csv)?;
+    let path = path_tracer_runs(&exe, &image, &judge, &mut csv)?;
+    let _ = std::fs::remove_file(&image);
+    print_targets(&radiosity, &path);
+    eprintln!("wrote {}", out.join("targets.csv").display());
+    Ok(())
+}
+
+/// `nusselt COMMAND --builtin cornell`'s arguments.
+fn base_args(command: &str) -> Vec<String> {
+    [command, "--builtin", "cornell"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect()
+}
+
+/// Each target's `render` run [`RUNS`] times; a CSV row each.
+fn radiosity_runs(
+    exe: &Path,
+    image: &Path,
+    judge: Judge,
+    csv: &mut dyn Write,
+) -> Result<Vec<TargetRun>> {
     let mut radiosity = Vec::new();
     for t in &TARGETS {
-        let mut args = base("render");
+        let mut args = base_args("render");
         args.extend(t.flags.iter().map(|s| s.to_string()));
         eprintln!("targets: render {}…", t.flags.join(" "));
-        let m = measure(&exe, &args, &image, RUNS, &judge)?;
+        let m = measure(exe, &args, image, RUNS, judge)?;
         let (lo, hi) = m
             .seconds
             .iter()
@@ -172,12 +196,22 @@ pub fn targets(out: &Path, reference_path: &Path) -> Result<()> {
         )?;
         radiosity.push((t, m, lo, hi));
     }
+    Ok(radiosity)
+}
+
+/// The path tracer (`nusselt reference`) once at each of [`PATH_SPP`]; a CSV row each.
+fn path_tracer_runs(
+    exe: &Path,
+    image: &Path,
+    judge: Judge,
+    csv: &mut dyn Write,
+) -> Result<Vec<(u32, Measured)>> {
     let mut path = Vec::new();
     for spp in PATH_SPP {
-        let mut args = base("reference");
+        let mut args = base_args("reference");
         args.extend(["--spp".to_string(), spp.to_string(), "--quiet".to_string()]);
         eprintln!("targets: path tracer {spp} spp…");
-        let m = measure(&exe, &args, &image, 1, &judge)?;
+        let m = measure(exe, &args, image, 1, judge)?;
         writeln!(
             csv,
             "pathtracer,--spp {spp},1,{:.3},{:.3},{:.3},{:.5},,",
@@ -188,15 +222,19 @@ pub fn targets(out: &Path, reference_path: &Path) -> Result<()> {
         )?;
         path.push((spp, m));
     }
-    let _ = std::fs::remove_file(&image);
+    Ok(path)
+}
 
+/// The targets and the path tracer's runs on stdout; the path tracer's time to each target
+/// measured where a run reached it, else extrapolated.
+fn print_targets(radiosity: &[TargetRun], path: &[(u32, Measured)]) {
     println!("\nCornell box 256², whole process (`nusselt render`, median of {RUNS} runs):");
     println!(
         "{:>7} {:>8} | {:>9} {:>15} {:>7} {:>4} | {:>18} | flags",
         "target", "in", "median s", "min–max s", "error", "met", "path tracer s"
     );
     let last = &path.last().expect("PATH_SPP is not empty").1;
-    for (t, m, lo, hi) in &radiosity {
+    for (t, m, lo, hi) in radiosity {
         let met = m.error <= t.error && m.median() <= t.seconds;
         // The path tracer's time to this error: measured where a run reached it, else
         // extrapolated from the largest run (error ∝ 1/√spp, time ∝ spp).
@@ -222,13 +260,11 @@ pub fn targets(out: &Path, reference_path: &Path) -> Result<()> {
         );
     }
     println!("path tracer (`nusselt reference`, one run each):");
-    for (spp, m) in &path {
+    for (spp, m) in path {
         println!(
             "  {spp:>4} spp: {:.2} s, {:.2} %",
             m.median(),
             m.error * 100.0
         );
     }
-    eprintln!("wrote {}", out.join("targets.csv").display());
-    Ok(())
 }

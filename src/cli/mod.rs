@@ -5,6 +5,7 @@
 
 pub mod bench;
 mod bench_cornell;
+mod bench_doc;
 mod bench_hierarchical;
 mod bench_images;
 mod bench_meshing;
