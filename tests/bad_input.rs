@@ -180,6 +180,7 @@ fn nusselt(args: &[&str]) -> (bool, String) {
     )
 }
 
+// Long by design: a table of bad inputs, each with the message it must produce.
 #[test]
 fn the_cli_reports_bad_input_without_panicking() {
     let dir = tempfile::tempdir().expect("tempdir");

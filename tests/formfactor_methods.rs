@@ -380,6 +380,8 @@ fn cubature_tolerance(c: &Case, method: FormFactorMethod, params: &FormFactorPar
     2.0 * (at(params.cubature_depth) - at(params.cubature_depth + 2)).abs() + 1e-12
 }
 
+// Long by design: every method on every occluded case of the catalogue, with each method's
+// own tolerance, in one table of checks.
 #[test]
 fn every_method_honours_occluders() {
     let occluded = load("formfactors_occluded.json");

@@ -464,6 +464,7 @@ fn scale_series_shoots_the_same_patches_in_the_same_order() {
 /// A closed 4 × 3 × 4 room whose floor is a smooth terrain of `n × n` cells (2n² triangles,
 /// vertex normals, heights 0 at the walls so the room stays closed), lit by the centre
 /// ninth of the ceiling. Returns the OBJ path.
+// Long by design: writes the OBJ and MTL text in order (vertices, normals, faces, walls).
 fn write_terrain(dir: &Path, n: usize) -> PathBuf {
     use std::fmt::Write as _;
     let (sx, sy, sz) = (4.0, 3.0, 4.0);

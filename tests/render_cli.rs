@@ -34,6 +34,8 @@ fn mean_rgb(img: &Image, x0: u32, x1: u32) -> [f64; 3] {
     s.map(|v| v / n)
 }
 
+// Long by design: one render writes every output (image, log, element CSV, JSON), and each
+// output is checked in turn against that same run (a split would render once per output).
 #[test]
 fn cornell_render_has_the_red_wall_on_the_left_and_writes_every_output() {
     let dir = tempfile::tempdir().expect("tempdir");

@@ -67,6 +67,7 @@ fn spawn(scene: Scene, config: ThreadConfig) -> (SolverHandle, Arc<AtomicUsize>)
     (h, wakes)
 }
 
+// Long by design: one random walk over every command, with the invariant checked after each.
 #[test]
 fn random_command_sequences_never_panic_or_deadlock() {
     let dir = tempfile::tempdir().expect("tempdir");

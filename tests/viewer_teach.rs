@@ -67,6 +67,8 @@ fn red_and_green(p: &Picture, x0: f64, x1: f64) -> (usize, usize) {
     (red, green)
 }
 
+// Long by design: one test starts the viewer under Xvfb once per teaching view and checks
+// each screenshot in turn; split, every part would need the same display and set-up.
 #[test]
 fn teach_screenshots_show_each_view() {
     if !vulkan_driver_present() {

@@ -374,6 +374,7 @@ fn a_distant_cluster_receives_by_direction() {
 /// 0.9996, one element 0.917. Each element's gathered light is now rescaled to its covered
 /// hemisphere ([`super::conserve`]), which is all of it in a closed box: every element
 /// gathers 1 to rounding.
+// Long by design: the scene (box and ball) is built in the test so the check reads with it.
 #[test]
 fn a_ball_in_a_closed_box_gathers_all_its_light() {
     let dir = std::env::temp_dir().join(format!("nusselt_ball_{}", std::process::id()));
