@@ -21,6 +21,7 @@ use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 
 mod common;
 use common::{catalogue, hemicube_bound, json_lines, load};
+use nusselt_core::mesh::MeshSpec;
 
 fn is_disk(c: &Case) -> bool {
     c.a2.len() > 8
@@ -497,8 +498,7 @@ fn cornell_with(
 ) -> ProgressiveSolver {
     let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
     let config = SolverConfig {
-        element_size: Some(element),
-        patch_size: Some(patch),
+        mesh: MeshSpec::sized(element, patch),
         method,
         formfactor: FormFactorParams {
             rays: 20_000,
@@ -713,8 +713,7 @@ fn hybrid_counts_hemicube_receivers_like_its_element_rule() {
     for (k, min_pixels, res) in [(5.0, 64.0, 256), (2.0, 0.0, 256), (1.0, 4.0, 64)] {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         let config = SolverConfig {
-            element_size: Some(30.0),
-            patch_size: Some(60.0),
+            mesh: MeshSpec::sized(30.0, 60.0),
             formfactor: FormFactorParams {
                 hybrid_k: k,
                 hybrid_min_pixels: min_pixels,

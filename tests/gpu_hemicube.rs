@@ -12,7 +12,7 @@ use nusselt_core::formfactor::hemicube::{
     self, DeltaTable, Hemicube, HemicubeView, ItemBufferRaster, NONE,
 };
 use nusselt_core::formfactor::{FormFactorMethod, FormFactorParams};
-use nusselt_core::mesh::PatchId;
+use nusselt_core::mesh::{MeshSpec, PatchId};
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 use nusselt_gpu::GpuHemicube;
@@ -45,8 +45,7 @@ fn cornell_config(
     raster: Option<Arc<dyn ItemBufferRaster>>,
 ) -> SolverConfig {
     SolverConfig {
-        element_size: Some(40.0),
-        patch_size: Some(80.0),
+        mesh: MeshSpec::sized(40.0, 80.0),
         method,
         formfactor: FormFactorParams {
             hemicube_res: 128,

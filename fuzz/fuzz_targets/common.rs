@@ -8,6 +8,7 @@ use std::sync::atomic::AtomicBool;
 use nusselt::render::{self, RenderSettings, SolutionView};
 use nusselt::scene::Scene;
 use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
+use nusselt_core::mesh::MeshSpec;
 
 /// Replaces libFuzzer's panic hook (which aborts at once) with a silent one, so that a
 /// panic the library catches and reports as an error is not counted as a crash; a panic
@@ -29,8 +30,7 @@ pub fn scratch() -> PathBuf {
 pub fn solve_and_render(scene: Scene) {
     let d = scene.bounds().diagonal();
     let config = SolverConfig {
-        element_size: Some(d / 6.0),
-        patch_size: Some(d / 3.0),
+        mesh: MeshSpec::sized(d / 6.0, d / 3.0),
         ..Default::default()
     };
     let Ok(mut s) = ProgressiveSolver::new(scene, config) else {

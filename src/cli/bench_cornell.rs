@@ -15,6 +15,7 @@ use nusselt_core::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_
 
 use super::bench_images::{Recorder, first_time_below, render_elements};
 use super::plot::{self, Plot, Series};
+use nusselt_core::mesh::MeshSpec;
 
 /// The Cornell box against the path-traced reference; writes `cornell_image.csv` and plots.
 pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
@@ -142,7 +143,10 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
     let (mut density, mut density_direct) = (Vec::new(), Vec::new());
     for budget in [1_250, 2_500, 5_000, 10_000, 20_000, 40_000] {
         let config = SolverConfig {
-            max_elements: Some(budget),
+            mesh: MeshSpec {
+                max_elements: Some(budget),
+                ..Default::default()
+            },
             ..Default::default()
         };
         let (vertex, direct) = run_to_end(format!("budget {budget}"), config, None, "density")?;
@@ -158,7 +162,10 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
         (5_000, 0.05),
     ] {
         let config = SolverConfig {
-            max_elements: Some(budget),
+            mesh: MeshSpec {
+                max_elements: Some(budget),
+                ..Default::default()
+            },
             ..Default::default()
         };
         run_to_end(
@@ -178,7 +185,10 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
         FormFactorMethod::Montecarlo,
     ] {
         let config = SolverConfig {
-            max_elements: Some(5_000),
+            mesh: MeshSpec {
+                max_elements: Some(5_000),
+                ..Default::default()
+            },
             method,
             ..Default::default()
         };

@@ -22,6 +22,7 @@ use nusselt_core::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_
 
 use super::bench::{peak_mb, reset_peak};
 use super::bench_images::render_elements;
+use nusselt_core::mesh::MeshSpec;
 
 /// Link tolerances measured (the default is [`nusselt_core::solver::DEFAULT_LINK_TOLERANCE`]).
 const TOLERANCES: [f64; 4] = [0.02, 0.005, 0.002, 0.001];
@@ -157,7 +158,10 @@ pub fn large(out: &Path, cornell_reference: &Path, gallery_reference: &Path) -> 
         ] {
             reset_peak();
             let config = SolverConfig {
-                max_elements,
+                mesh: MeshSpec {
+                    max_elements,
+                    ..Default::default()
+                },
                 ..SolverConfig::default()
             };
             let start = Instant::now();

@@ -17,6 +17,7 @@ use nusselt_core::solver::{SolverConfig, StopCriteria, run_solver};
 
 use super::bench_images::render_elements;
 use super::plot::{self, Plot, Series};
+use nusselt_core::mesh::MeshSpec;
 
 /// One measured mesh: kind, label, elements, whole seconds and error interpolated, and with
 /// the direct pass.
@@ -78,8 +79,11 @@ pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
     for budget in [2_500, 5_000, 10_000, 20_000, 40_000] {
         for (kind, discontinuity) in [("uniform", false), ("discontinuity", true)] {
             let config = SolverConfig {
-                max_elements: Some(budget),
-                discontinuity,
+                mesh: MeshSpec {
+                    max_elements: Some(budget),
+                    discontinuity,
+                    ..Default::default()
+                },
                 ..Default::default()
             };
             rows.push(measure(kind, format!("budget {budget}"), config, None)?);
@@ -96,7 +100,10 @@ pub fn meshing(out: &Path, reference_path: &Path) -> Result<()> {
         (5_000, 0.05),
     ] {
         let config = SolverConfig {
-            max_elements: Some(budget),
+            mesh: MeshSpec {
+                max_elements: Some(budget),
+                ..Default::default()
+            },
             ..Default::default()
         };
         let label = format!("budget {budget}, --adaptive {tolerance}");

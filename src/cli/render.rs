@@ -13,6 +13,7 @@ use super::method::{MethodArgs, parse_method, raster_for};
 use super::pass::{parse_pass, render_chosen};
 use super::{MAX_RAYS, MAX_VIS_RAYS, SceneArgs, ViewArgs, check_count, check_output};
 use nusselt_core::formfactor::FormFactorParams;
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::render::{self, Image};
 use nusselt_core::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
 
@@ -315,7 +316,12 @@ fn render(args: &RenderArgs) -> Result<()> {
         None => None,
     };
     let config = SolverConfig {
-        element_size: args.element_size.or(file_mesh.element_size),
+        mesh: MeshSpec {
+            element_size: args.element_size.or(file_mesh.element_size),
+            patch_size,
+            max_elements,
+            discontinuity: args.discontinuity || file_mesh.discontinuity,
+        },
         method,
         formfactor: FormFactorParams {
             visibility_rays: args.vis_rays,
@@ -324,8 +330,6 @@ fn render(args: &RenderArgs) -> Result<()> {
             rays: args.rays,
             ..args.method_args.params()
         },
-        patch_size,
-        max_elements,
         overshoot: !args.no_overshoot,
         regional_ambient,
         link_tolerance: args
@@ -333,7 +337,6 @@ fn render(args: &RenderArgs) -> Result<()> {
             .unwrap_or(nusselt_core::solver::DEFAULT_LINK_TOLERANCE),
         memory_bytes: max_memory_bytes(args.max_memory)?,
         raster: raster_for(method)?,
-        discontinuity: args.discontinuity || file_mesh.discontinuity,
     };
     let adapter = config.raster.as_ref().map(|r| r.describe());
     let solve_start = Instant::now();

@@ -23,6 +23,7 @@ use super::render::ViewportResources;
 use super::snapshot::Snapshot;
 use super::solver_thread::{Command, Event, Latest, SolverHandle, ThreadConfig};
 use super::teach::{TeachCommand, TeachState, TeachView};
+use nusselt_core::mesh::MeshSpec;
 
 mod actions;
 
@@ -72,12 +73,14 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
     };
     ThreadConfig {
         solver: SolverConfig {
-            element_size: options.element_size,
-            patch_size: options.patch_size,
-            max_elements: options.max_elements,
+            mesh: MeshSpec {
+                element_size: options.element_size,
+                patch_size: options.patch_size,
+                max_elements: options.max_elements,
+                discontinuity: options.discontinuity,
+            },
             method: options.method,
             raster: options.raster.clone(),
-            discontinuity: options.discontinuity,
             memory_bytes: options.memory_bytes,
             ..Default::default()
         },

@@ -18,7 +18,7 @@ use std::time::Instant;
 
 use crate::formfactor::hemicube::ItemBufferRaster;
 use crate::formfactor::{FormFactorMethod, FormFactorParams};
-use crate::mesh::{Mesh, MeshError, PatchId};
+use crate::mesh::{Mesh, MeshError, MeshSpec, PatchId};
 use crate::scene::{MaterialId, Rgb};
 
 pub mod ambient;
@@ -42,13 +42,8 @@ pub use rows::RowCache;
 
 #[derive(Clone, Debug)]
 pub struct SolverConfig {
-    /// Element edge length; `None` = [`crate::mesh::default_element_size`].
-    pub element_size: Option<f64>,
-    /// Patch (shooter) edge length; `None` = [`crate::mesh::default_patch_size`].
-    pub patch_size: Option<f64>,
-    /// Element budget for the element size when `element_size` is `None`; `None` =
-    /// [`crate::mesh::default_element_size`].
-    pub max_elements: Option<usize>,
+    /// The mesh: its sizes or element budget, and discontinuity meshing.
+    pub mesh: MeshSpec,
     pub method: FormFactorMethod,
     pub formfactor: FormFactorParams,
     /// The run's memory budget in bytes ([`crate::budget`]): the textures and the mesh
@@ -66,9 +61,6 @@ pub struct SolverConfig {
     /// Hierarchical radiosity's BF refinement threshold, relative to the scene's area-mean
     /// emitted radiosity (`--link-tolerance`): smaller gives more links and a finer answer.
     pub link_tolerance: f64,
-    /// A priori discontinuity meshing: the lights' shadow outlines become element edges
-    /// (`--discontinuity`, [`crate::mesh::discontinuity`]).
-    pub discontinuity: bool,
     /// The rasteriser of `gpu-hemicube` rows (`nusselt_gpu::GpuHemicube`); required by that
     /// method, unused by the others.
     pub raster: Option<Arc<dyn ItemBufferRaster>>,
@@ -77,16 +69,13 @@ pub struct SolverConfig {
 impl Default for SolverConfig {
     fn default() -> Self {
         Self {
-            element_size: None,
-            patch_size: None,
-            max_elements: None,
+            mesh: MeshSpec::default(),
             method: FormFactorMethod::Contour,
             formfactor: FormFactorParams::default(),
             memory_bytes: crate::budget::FALLBACK_BYTES,
             overshoot: true,
             regional_ambient: true,
             link_tolerance: DEFAULT_LINK_TOLERANCE,
-            discontinuity: false,
             raster: None,
         }
     }

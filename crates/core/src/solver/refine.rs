@@ -1,11 +1,34 @@
 //! Adaptive meshing as a solve: solve, mark where the radiance varies across elements
 //! ([`crate::mesh::adaptive`]), rebuild the mesh refined there, carry the solution onto it
-//! (shooting: [`Solver::carry_to`], nothing gained or lost) and go on.
+//! (shooting: [`Solver::carry_to`], nothing gained or lost; other solvers start the refined
+//! mesh from dark) and go on.
+//!
+//! One routine, [`Refinement`], serves the CLI ([`refine_adaptively`], `render --adaptive`),
+//! the viewer's solver thread (`view --adaptive`, "refine adaptively": it calls
+//! [`Refinement::next`] between solver steps, whenever the solve is [`Refinement::due`]) and
+//! the teaching view's uniform-vs-adaptive meshing (through [`refine_adaptively`]).
+//! Its stop rules, the same for all three: refinement ends
+//! - after `max_passes` refinements (the CLI's `--adaptive-passes`; the viewer's
+//!   `2 × max_level + 2`, enough to reach the deepest level and coarsen back where the
+//!   light settled, and a bound should refining and coarsening ever alternate);
+//! - when a solution asks for no change of level ([`crate::mesh::adaptive::refine_levels`]
+//!   gives the levels the mesh has), or for no refinement anywhere (all levels 0: nothing
+//!   is rebuilt to coarsen back to the base mesh);
+//! - short, with a message, when the next mesh would have more elements than
+//!   [`crate::mesh::MAX_ELEMENTS`] or than the memory budget holds beside the textures
+//!   (estimated from the current mesh: each level multiplies a patch's elements by about
+//!   four). The viewer used to stop at [`crate::mesh::MAX_ELEMENTS`] only; it now keeps to
+//!   the memory budget as the CLI does.
+//!
+//! A refined mesh is built from the problem's [`crate::mesh::MeshSpec`] at the sizes of
+//! the mesh solved, so discontinuity meshing's cuts (the base patches the levels are
+//! indexed by) are kept.
 
 use std::sync::atomic::AtomicBool;
 
 use super::auto::{self, RunShape};
 use super::{Problem, Solver, SolverError, SolverKind, solve_to};
+use crate::mesh::{Mesh, MeshSpec};
 use crate::scene::Rgb;
 
 pub mod penumbra;
@@ -60,12 +83,142 @@ pub struct Refined {
     pub switched: Vec<String>,
 }
 
-/// `passes` rounds of solve (to `unshot`, at most 1e-3), mark, refine (see
-/// [`crate::mesh::adaptive`]); returns the solver on the last mesh, with the solution
-/// carried onto it where the solver can ([`Solver::carry_to`]) and from dark where it
-/// cannot: run it on to the stop wanted. Refinement stops before a mesh of more than
-/// [`crate::mesh::MAX_ELEMENTS`] elements or more than the memory budget holds beside the
-/// textures (each level multiplies a patch's elements by about four), and says so.
+/// Refine once a solve has left this fraction of the emitted power unshot (or less): the
+/// indicator needs the solution's shape, not its last digits.
+pub const REFINE_UNSHOT: f64 = 1e-3;
+
+/// An adaptive refinement in progress: the levels per base patch of the current mesh and
+/// the stop rules (see the module docs). [`Refinement::next`] turns a solution on the
+/// current mesh into the problem on the next one, or says refinement is over.
+#[derive(Clone, Debug)]
+pub struct Refinement {
+    tolerance: f64,
+    /// Refinement level per base patch of the current mesh (shorter: 0 past the end).
+    levels: Vec<u8>,
+    /// Refinements made.
+    passes: u32,
+    max_passes: u32,
+    max_level: u8,
+    /// The most elements a refined mesh may have; `None`: what the problem's memory
+    /// budget holds beside its textures, at most [`crate::mesh::MAX_ELEMENTS`].
+    max_elements: Option<usize>,
+}
+
+/// What [`Refinement::next`] makes of a solution.
+pub enum Next {
+    /// The problem on the refined mesh: carry the solution onto it ([`Solver::carry_to`])
+    /// or solve it from dark.
+    Refined(Box<Problem>),
+    /// Refinement is over: the solve goes on on the current mesh. `stopped` says why when
+    /// it stopped short because the next mesh would not fit.
+    Done { stopped: Option<String> },
+}
+
+impl Refinement {
+    /// Refinement of an unrefined mesh to `tolerance`, at most `max_passes` times and
+    /// `max_level` levels per base patch, within the element limit of the problem's memory
+    /// budget.
+    pub fn new(tolerance: f64, max_passes: u32, max_level: u8) -> Self {
+        Self {
+            tolerance,
+            levels: Vec::new(),
+            passes: 0,
+            max_passes,
+            max_level,
+            max_elements: None,
+        }
+    }
+
+    pub fn tolerance(&self) -> f64 {
+        self.tolerance
+    }
+
+    /// Refinements made so far.
+    pub fn passes(&self) -> u32 {
+        self.passes
+    }
+
+    /// Starts the levels over: the mesh was rebuilt some other way (its base patches are
+    /// new), the passes made still count.
+    pub fn restart_levels(&mut self) {
+        self.levels.clear();
+    }
+
+    /// Whether a solve with `residual` left is far enough for the next refinement: at
+    /// [`REFINE_UNSHOT`], or at `stop` when the solve is to stop earlier.
+    pub fn due(residual: f64, stop: f64) -> bool {
+        residual <= REFINE_UNSHOT.max(stop)
+    }
+
+    /// The next step after a solution `radiance` (per element) on `problem`'s mesh: the
+    /// problem on the mesh refined where the solution asks for it ([`next_levels`]), or
+    /// [`Next::Done`] by the stop rules of the module docs.
+    pub fn next(&mut self, problem: &Problem, radiance: &[Rgb]) -> Result<Next, SolverError> {
+        if self.passes >= self.max_passes {
+            return Ok(Next::Done { stopped: None });
+        }
+        let levels = next_levels(
+            problem,
+            radiance,
+            &self.levels,
+            self.tolerance,
+            self.max_level,
+        );
+        if levels == self.levels || levels.iter().all(|&l| l == 0) {
+            return Ok(Next::Done { stopped: None });
+        }
+        let mesh = &problem.mesh;
+        let estimate = self.estimate(mesh, &levels);
+        let limit = self.max_elements.unwrap_or_else(|| {
+            crate::budget::elements_within(problem.config.memory_bytes, problem.scene.texture_bytes)
+                .min(crate::mesh::MAX_ELEMENTS)
+        });
+        if estimate > limit as f64 {
+            let stopped = format!(
+                "adaptive refinement stopped at {} elements: the next pass would make about {:.0}, more than the limit of {} (--max-memory at {} bytes an element, at most {})",
+                mesh.elements.len(),
+                estimate,
+                limit,
+                crate::budget::ELEMENT_BYTES,
+                crate::mesh::MAX_ELEMENTS
+            );
+            return Ok(Next::Done {
+                stopped: Some(stopped),
+            });
+        }
+        let spec = MeshSpec {
+            element_size: Some(mesh.element_size),
+            patch_size: Some(mesh.patch_size),
+            ..problem.config.mesh
+        };
+        let refined = Mesh::build_refined(&problem.scene, &spec, &levels)?;
+        let refined = Problem::with_mesh(problem.scene.clone(), problem.config.clone(), refined)?;
+        self.levels = levels;
+        self.passes += 1;
+        Ok(Next::Refined(Box::new(refined)))
+    }
+
+    /// About how many elements `mesh` (at the current levels) makes at `levels`: each
+    /// level more quarters a patch's elements' area.
+    fn estimate(&self, mesh: &Mesh, levels: &[u8]) -> f64 {
+        let level = |v: &[u8], b: u32| i32::from(v.get(b as usize).copied().unwrap_or(0));
+        mesh.patches
+            .iter()
+            .zip(&mesh.base_patch)
+            .map(|(p, &b)| {
+                let more = level(levels, b) - level(&self.levels, b);
+                f64::from(p.elements.end - p.elements.start) * 4f64.powi(more)
+            })
+            .sum()
+    }
+}
+
+/// `passes` rounds of solve (to `unshot`, at most [`REFINE_UNSHOT`]), mark, refine (a
+/// [`Refinement`] of at most `passes` levels); returns the solver on the last mesh, with
+/// the solution carried onto it where the solver can ([`Solver::carry_to`]) and from dark
+/// where it cannot: run it on to the stop wanted. Refinement stops before a mesh of more
+/// than [`crate::mesh::MAX_ELEMENTS`] elements or more than the memory budget holds beside
+/// the textures, and says so.
 pub fn refine_adaptively(
     problem: Problem,
     choice: Choice,
@@ -73,10 +226,8 @@ pub fn refine_adaptively(
     passes: u8,
     unshot: f64,
 ) -> Result<Refined, SolverError> {
-    let fit =
-        crate::budget::elements_within(problem.config.memory_bytes, problem.scene.texture_bytes);
-    let limit = fit.min(crate::mesh::MAX_ELEMENTS);
-    refine_within(problem, choice, tolerance, passes, unshot, limit)
+    let refinement = Refinement::new(tolerance, u32::from(passes), passes);
+    refine_with(problem, choice, refinement, unshot)
 }
 
 /// The solver `choice` makes for `problem`, and why when `auto` chose it.
@@ -90,62 +241,30 @@ fn kind_for(problem: &Problem, choice: Choice) -> (SolverKind, Option<String>) {
     }
 }
 
-/// [`refine_adaptively`] with the element limit given.
-fn refine_within(
+/// [`refine_adaptively`] with the refinement given.
+fn refine_with(
     problem: Problem,
     choice: Choice,
-    tolerance: f64,
-    passes: u8,
+    mut refinement: Refinement,
     unshot: f64,
-    max_elements: usize,
 ) -> Result<Refined, SolverError> {
-    let mut levels: Vec<u8> = Vec::new();
     let never = AtomicBool::new(false);
     let mut switched = Vec::new();
     let (mut kind, _) = kind_for(&problem, choice);
     let mut solver = kind.build(problem)?;
-    for _ in 0..passes {
-        solve_to(solver.as_mut(), unshot.max(1e-3));
+    for _ in 0..refinement.max_passes {
+        solve_to(solver.as_mut(), unshot.max(REFINE_UNSHOT));
         let radiance = solver.element_radiance(false);
-        let mesh = &solver.problem().mesh;
-        let next = next_levels(solver.problem(), &radiance, &levels, tolerance, passes);
-        let level = |v: &[u8], b: u32| i32::from(v.get(b as usize).copied().unwrap_or(0));
-        let estimate: f64 = mesh
-            .patches
-            .iter()
-            .zip(&mesh.base_patch)
-            .map(|(p, &b)| {
-                let more = level(&next, b) - level(&levels, b);
-                f64::from(p.elements.end - p.elements.start) * 4f64.powi(more)
-            })
-            .sum();
-        if next == levels || next.iter().all(|&l| l == 0) {
-            break;
-        }
-        if estimate > max_elements as f64 {
-            let stopped = format!(
-                "adaptive refinement stopped at {} elements: the next pass would make about {:.0}, more than the limit of {max_elements} (--max-memory at {} bytes an element, at most {})",
-                mesh.elements.len(),
-                estimate,
-                crate::budget::ELEMENT_BYTES,
-                crate::mesh::MAX_ELEMENTS
-            );
-            return Ok(Refined {
-                solver,
-                stopped: Some(stopped),
-                switched,
-            });
-        }
-        levels = next;
-        let solved = solver.problem();
-        let mesh = crate::mesh::Mesh::build_refined(
-            &solved.scene,
-            solved.mesh.element_size,
-            solved.mesh.patch_size,
-            &levels,
-            solved.config.discontinuity,
-        )?;
-        let refined = Problem::with_mesh(solved.scene.clone(), solved.config.clone(), mesh)?;
+        let refined = match refinement.next(solver.problem(), &radiance)? {
+            Next::Refined(refined) => *refined,
+            Next::Done { stopped } => {
+                return Ok(Refined {
+                    solver,
+                    stopped,
+                    switched,
+                });
+            }
+        };
         let (next, why) = kind_for(&refined, choice);
         solver = if next == kind {
             match solver.carry_to(refined, &never) {
@@ -179,8 +298,7 @@ mod tests {
     fn cornell() -> Problem {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         let config = SolverConfig {
-            element_size: Some(60.0),
-            patch_size: Some(120.0),
+            mesh: MeshSpec::sized(60.0, 120.0),
             ..Default::default()
         };
         Problem::new(scene, config).expect("problem")
@@ -202,15 +320,13 @@ mod tests {
         // Carried, not restarted: the light's shots are already on the refined mesh.
         assert!(refined.steps() > 0 && refined.residual() < 1.0);
         // A limit below what one level would make: the first mesh comes back.
-        let limited = refine_within(
-            cornell(),
-            SolverKind::Shooting.into(),
-            0.1,
-            1,
-            1e-3,
-            first + 1,
-        )
-        .expect("limited");
+        let problem = cornell();
+        let refinement = Refinement {
+            max_elements: Some(first + 1),
+            ..Refinement::new(0.1, 1, 1)
+        };
+        let limited =
+            refine_with(problem, SolverKind::Shooting.into(), refinement, 1e-3).expect("limited");
         assert!(limited.stopped.is_some_and(|s| s.contains("stopped at")));
         assert_eq!(limited.solver.problem().mesh.elements.len(), first);
     }
@@ -231,9 +347,12 @@ mod tests {
     fn discontinuity_cuts_survive_adaptive_refinement() {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         let config = SolverConfig {
-            element_size: Some(60.0),
-            patch_size: Some(120.0),
-            discontinuity: true,
+            mesh: MeshSpec {
+                element_size: Some(60.0),
+                patch_size: Some(120.0),
+                discontinuity: true,
+                ..Default::default()
+            },
             ..Default::default()
         };
         let cut = Problem::new(scene, config).expect("problem");

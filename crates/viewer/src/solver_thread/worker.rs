@@ -20,6 +20,7 @@ use super::super::teach::meshing::{MeshDetail, MeshJob};
 use super::super::teach::nusselt::{NusseltDetail, NusseltRequest};
 use super::super::teach::step::{Before, StepDetail};
 use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
+use nusselt_core::mesh::MeshSpec;
 
 pub(super) struct Worker {
     pub(super) rx: Receiver<Command>,
@@ -493,9 +494,9 @@ impl Worker {
         let mut file = nusselt_core::scene::SceneFile::describe(&problem.scene, camera, path);
         file.mesh = Some(MeshEntry {
             element_size: Some(problem.mesh.element_size),
-            patch_size: problem.config.patch_size,
-            max_elements: problem.config.max_elements,
-            discontinuity: problem.config.discontinuity,
+            patch_size: problem.config.mesh.patch_size,
+            max_elements: problem.config.mesh.max_elements,
+            discontinuity: problem.config.mesh.discontinuity,
         });
         file.solver = Some(SolverEntry {
             name: Some(self.kind.name().into()),
@@ -508,8 +509,11 @@ impl Worker {
     fn load(&mut self, scene: Scene) {
         // A new scene gets its own default element size, the other settings stay.
         let config = SolverConfig {
-            element_size: None,
-            patch_size: None,
+            mesh: MeshSpec {
+                element_size: None,
+                patch_size: None,
+                ..self.config.mesh
+            },
             ..self.config.clone()
         };
         self.install_lit(scene, config);
@@ -556,10 +560,12 @@ impl Worker {
             return;
         };
         let config = SolverConfig {
-            element_size: mesh.element_size,
-            patch_size: mesh.patch_size,
-            max_elements: mesh.max_elements,
-            discontinuity: mesh.discontinuity,
+            mesh: MeshSpec {
+                element_size: mesh.element_size,
+                patch_size: mesh.patch_size,
+                max_elements: mesh.max_elements,
+                discontinuity: mesh.discontinuity,
+            },
             ..self.config.clone()
         };
         self.install_lit(scene, config);

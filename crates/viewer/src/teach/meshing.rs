@@ -20,6 +20,7 @@ use nusselt_core::scene::{Camera, Rgb, Scene};
 use nusselt_core::solver::{Problem, Solver, SolverConfig, SolverKind, StopCriteria, run_solver};
 
 use super::item_image::ItemImage;
+use nusselt_core::mesh::MeshSpec;
 
 /// Side of each image, in pixels.
 pub const IMAGE_SIDE: usize = 288;
@@ -185,9 +186,12 @@ fn compute(
     stage.store(1, Ordering::Relaxed);
     let start = Instant::now();
     let coarse = SolverConfig {
-        element_size: Some(h * COARSER),
-        patch_size: Some(patch.max(h * COARSER)),
-        max_elements: None,
+        mesh: MeshSpec {
+            element_size: Some(h * COARSER),
+            patch_size: Some(patch.max(h * COARSER)),
+            max_elements: None,
+            ..config.mesh
+        },
         ..config
     };
     let problem = Problem::new(scene, coarse).map_err(|e| e.to_string())?;
@@ -226,7 +230,7 @@ mod tests {
     fn the_adaptive_mesh_is_smaller_and_graded() {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         let config = SolverConfig {
-            element_size: Some(60.0),
+            mesh: MeshSpec::element(60.0),
             ..SolverConfig::default()
         };
         let job =
