@@ -5,10 +5,10 @@
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 
+use nusselt::mesh::MeshSpec;
 use nusselt::render::{self, RenderSettings, SolutionView};
 use nusselt::scene::Scene;
 use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
-use nusselt_core::mesh::MeshSpec;
 
 /// Replaces libFuzzer's panic hook (which aborts at once) with a silent one, so that a
 /// panic the library catches and reports as an error is not counted as a crash; a panic

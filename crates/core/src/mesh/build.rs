@@ -29,8 +29,9 @@ const SLIVER_RATIO: f64 = 12.0;
 impl Mesh {
     /// The mesh of `scene` that `spec` asks for: at its element size (patches
     /// [`MeshSpec::patch_for`] it), or, with none given, at the size its element budget
-    /// gives ([`Mesh::build_for_budget`]); the lights' shadow outlines are element edges when
-    /// `spec.discontinuity` ([`super::discontinuity`]).
+    /// gives (estimated from face areas, then rebuilt coarser at most twice while more than
+    /// 5 % over); the lights' shadow outlines are element edges when `spec.discontinuity`
+    /// ([`super::discontinuity`]).
     pub fn build(scene: &Scene, spec: &MeshSpec) -> Result<Mesh, MeshError> {
         Mesh::build_refined(scene, spec, &[])
     }

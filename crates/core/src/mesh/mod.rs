@@ -126,7 +126,7 @@ fn count_at(scene: &Scene, areas: &[f64], s: f64) -> f64 {
             .sum::<f64>()
 }
 
-/// About how many elements [`Mesh::build_with`] makes of `scene` at element size `size`,
+/// About how many elements [`Mesh::build`] makes of `scene` at element size `size`,
 /// known before meshing so that a mesh too large for the memory budget is refused at once:
 /// per face `max(1, k A / s² + P / 2s)`, the area term of [`element_size_for_budget`] plus
 /// the part-elements along the perimeter `P` (a w × h quad cut into ⌈w/s⌉ × ⌈h/s⌉ squares

@@ -1,6 +1,5 @@
 use super::build::subdivide;
 use super::*;
-use crate::mesh::MeshSpec;
 use crate::scene::{LoadOptions, Rgb, Scene};
 
 fn cornell() -> Scene {
@@ -214,4 +213,22 @@ fn too_small_element_size_is_refused() {
         Mesh::build(&scene, &MeshSpec::element(f64::NAN)),
         Err(MeshError::BadElementSize(_))
     ));
+}
+
+/// A spec without an element size meshes for the element budget; refined, the levels
+/// apply to the patches of that budget mesh (the same sizes, the same base patches).
+#[test]
+fn a_budget_spec_refines_the_budget_mesh() {
+    let scene = cornell();
+    let spec = MeshSpec {
+        max_elements: Some(500),
+        ..MeshSpec::default()
+    };
+    let base = Mesh::build(&scene, &spec).expect("mesh");
+    let same = Mesh::build_refined(&scene, &spec, &[0, 0]).expect("mesh");
+    assert_eq!(same.elements.len(), base.elements.len());
+    let fine = Mesh::build_refined(&scene, &spec, &[1]).expect("mesh");
+    assert_eq!(fine.element_size, base.element_size);
+    assert_eq!(fine.base_count(), base.base_count());
+    assert!(fine.elements.len() > base.elements.len());
 }
