@@ -375,6 +375,7 @@ fn render(args: &RenderArgs) -> Result<()> {
                 tolerance,
                 args.adaptive_passes,
                 unshot,
+                &std::sync::atomic::AtomicBool::new(false),
             )?;
             if let Some(why) = &refined.stopped {
                 eprintln!("note: {why}");

@@ -218,16 +218,18 @@ impl Refinement {
 /// the solution carried onto it where the solver can ([`Solver::carry_to`]) and from dark
 /// where it cannot: run it on to the stop wanted. Refinement stops before a mesh of more
 /// than [`crate::mesh::MAX_ELEMENTS`] elements or more than the memory budget holds beside
-/// the textures, and says so.
+/// the textures, and says so. With `cancel` set it stops at the next pass (or carry) and
+/// returns the solver it has.
 pub fn refine_adaptively(
     problem: Problem,
     choice: Choice,
     tolerance: f64,
     passes: u8,
     unshot: f64,
+    cancel: &AtomicBool,
 ) -> Result<Refined, SolverError> {
     let refinement = Refinement::new(tolerance, u32::from(passes), passes);
-    refine_with(problem, choice, refinement, unshot)
+    refine_with(problem, choice, refinement, unshot, cancel)
 }
 
 /// The solver `choice` makes for `problem`, and why when `auto` chose it.
@@ -247,12 +249,15 @@ fn refine_with(
     choice: Choice,
     mut refinement: Refinement,
     unshot: f64,
+    cancel: &AtomicBool,
 ) -> Result<Refined, SolverError> {
-    let never = AtomicBool::new(false);
     let mut switched = Vec::new();
     let (mut kind, _) = kind_for(&problem, choice);
     let mut solver = kind.build(problem)?;
     for _ in 0..refinement.max_passes {
+        if cancel.load(std::sync::atomic::Ordering::Relaxed) {
+            break;
+        }
         solve_to(solver.as_mut(), unshot.max(REFINE_UNSHOT));
         let radiance = solver.element_radiance(false);
         let refined = match refinement.next(solver.problem(), &radiance)? {
@@ -267,7 +272,7 @@ fn refine_with(
         };
         let (next, why) = kind_for(&refined, choice);
         solver = if next == kind {
-            match solver.carry_to(refined, &never) {
+            match solver.carry_to(refined, cancel) {
                 Ok(carried) => carried,
                 Err(refined) => kind.build(*refined)?,
             }
@@ -308,8 +313,15 @@ mod tests {
     fn refinement_adds_elements_and_stops_at_the_element_limit() {
         let first = cornell().mesh.elements.len();
         let patches = cornell().mesh.patches.len();
-        let refined = refine_adaptively(cornell(), SolverKind::Shooting.into(), 0.1, 1, 1e-3)
-            .expect("refined");
+        let refined = refine_adaptively(
+            cornell(),
+            SolverKind::Shooting.into(),
+            0.1,
+            1,
+            1e-3,
+            &AtomicBool::new(false),
+        )
+        .expect("refined");
         assert!(refined.stopped.is_none());
         let refined = refined.solver;
         assert!(
@@ -325,17 +337,30 @@ mod tests {
             max_elements: Some(first + 1),
             ..Refinement::new(0.1, 1, 1)
         };
-        let limited =
-            refine_with(problem, SolverKind::Shooting.into(), refinement, 1e-3).expect("limited");
+        let limited = refine_with(
+            problem,
+            SolverKind::Shooting.into(),
+            refinement,
+            1e-3,
+            &AtomicBool::new(false),
+        )
+        .expect("limited");
         assert!(limited.stopped.is_some_and(|s| s.contains("stopped at")));
         assert_eq!(limited.solver.problem().mesh.elements.len(), first);
     }
 
     #[test]
     fn a_solver_that_cannot_carry_starts_the_refined_mesh_from_dark() {
-        let refined = refine_adaptively(cornell(), SolverKind::Jacobi.into(), 0.1, 1, 1e-3)
-            .expect("refined")
-            .solver;
+        let refined = refine_adaptively(
+            cornell(),
+            SolverKind::Jacobi.into(),
+            0.1,
+            1,
+            1e-3,
+            &AtomicBool::new(false),
+        )
+        .expect("refined")
+        .solver;
         assert!(refined.problem().mesh.elements.len() > cornell().mesh.elements.len());
         assert_eq!(refined.steps(), 0);
     }
@@ -359,9 +384,16 @@ mod tests {
         let plain = cornell();
         let bases = cut.mesh.base_count();
         assert!(bases > plain.mesh.base_count(), "the cuts add base patches");
-        let refined = refine_adaptively(cut, SolverKind::Shooting.into(), 0.1, 1, 1e-3)
-            .expect("refined")
-            .solver;
+        let refined = refine_adaptively(
+            cut,
+            SolverKind::Shooting.into(),
+            0.1,
+            1,
+            1e-3,
+            &AtomicBool::new(false),
+        )
+        .expect("refined")
+        .solver;
         let mesh = &refined.problem().mesh;
         assert_eq!(mesh.base_count(), bases, "the cut base patches are kept");
         assert!(mesh.patches.len() > bases, "something was refined");

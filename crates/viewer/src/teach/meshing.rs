@@ -201,6 +201,7 @@ fn compute(
         tolerance,
         PASSES,
         UNSHOT,
+        cancel,
     )
     .map_err(|e| e.to_string())?
     .solver;
