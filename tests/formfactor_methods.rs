@@ -16,12 +16,12 @@ use glam::DVec3;
 use nusselt_core::cases::{self, Case};
 use nusselt_core::formfactor::{FormFactorMethod, FormFactorParams, contour, exact};
 use nusselt_core::geometry::polygon;
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 
 mod common;
 use common::{catalogue, hemicube_bound, json_lines, load};
-use nusselt_core::mesh::MeshSpec;
 
 fn is_disk(c: &Case) -> bool {
     c.a2.len() > 8

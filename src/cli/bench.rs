@@ -17,10 +17,10 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, MaterialId, Rgb, Scene};
 
 use super::plot::{self, Plot, Series};
-use nusselt_core::mesh::MeshSpec;
 use nusselt_core::solver::{
     Problem, ProgressiveSolver, Solver, SolverConfig, SolverKind, StopCriteria, run_solver,
 };

@@ -9,13 +9,13 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 
 use nusselt_core::formfactor::FormFactorMethod;
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::render::{self, Image, RenderSettings};
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
 
 use super::bench_images::{Recorder, first_time_below, render_elements};
 use super::plot::{self, Plot, Series};
-use nusselt_core::mesh::MeshSpec;
 
 /// The Cornell box against the path-traced reference; writes `cornell_image.csv` and plots.
 pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {

@@ -16,13 +16,13 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::render::{self, Image};
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
 
 use super::bench::{peak_mb, reset_peak};
 use super::bench_images::render_elements;
-use nusselt_core::mesh::MeshSpec;
 
 /// Link tolerances measured (the default is [`nusselt_core::solver::DEFAULT_LINK_TOLERANCE`]).
 const TOLERANCES: [f64; 4] = [0.02, 0.005, 0.002, 0.001];

@@ -11,13 +11,13 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::render::{self, Image, RenderSettings};
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{SolverConfig, StopCriteria, run_solver};
 
 use super::bench_images::render_elements;
 use super::plot::{self, Plot, Series};
-use nusselt_core::mesh::MeshSpec;
 
 /// One measured mesh: kind, label, elements, whole seconds and error interpolated, and with
 /// the direct pass.

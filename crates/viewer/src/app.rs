@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use eframe::egui;
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::SolverConfig;
 
@@ -23,7 +24,6 @@ use super::render::ViewportResources;
 use super::snapshot::Snapshot;
 use super::solver_thread::{Command, Event, Latest, SolverHandle, ThreadConfig};
 use super::teach::{TeachCommand, TeachState, TeachView};
-use nusselt_core::mesh::MeshSpec;
 
 mod actions;
 

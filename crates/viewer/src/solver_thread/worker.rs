@@ -9,6 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TryRecvError, TrySendError};
 use std::time::{Duration, Instant};
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{AreaLight, LoadOptions, Material, MaterialId, Rgb, Scene};
 use nusselt_core::solver::{Problem, Solver, SolverConfig, SolverKind};
 
@@ -20,7 +21,6 @@ use super::super::teach::meshing::{MeshDetail, MeshJob};
 use super::super::teach::nusselt::{NusseltDetail, NusseltRequest};
 use super::super::teach::step::{Before, StepDetail};
 use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
-use nusselt_core::mesh::MeshSpec;
 
 pub(super) struct Worker {
     pub(super) rx: Receiver<Command>,

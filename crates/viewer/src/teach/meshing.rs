@@ -16,11 +16,11 @@ use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{Camera, Rgb, Scene};
 use nusselt_core::solver::{Problem, Solver, SolverConfig, SolverKind, StopCriteria, run_solver};
 
 use super::item_image::ItemImage;
-use nusselt_core::mesh::MeshSpec;
 
 /// Side of each image, in pixels.
 pub const IMAGE_SIDE: usize = 288;
