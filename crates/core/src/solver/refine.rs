@@ -17,8 +17,13 @@
 //! - short, with a message, when the next mesh would have more elements than
 //!   [`crate::mesh::MAX_ELEMENTS`] or than the memory budget holds beside the textures
 //!   (estimated from the current mesh: each level multiplies a patch's elements by about
-//!   four). The viewer used to stop at [`crate::mesh::MAX_ELEMENTS`] only; it now keeps to
-//!   the memory budget as the CLI does.
+//!   four).
+//!
+//! Where the CLI's and the viewer's rules once differed, the CLI's were kept: the viewer
+//! too stops when nothing is to be refined (rather than rebuilding the same mesh once
+//! more) and keeps to the memory budget, not only to [`crate::mesh::MAX_ELEMENTS`]. The
+//! numbers stay each caller's: the CLI allows as many levels as passes, the viewer three
+//! levels in eight passes.
 //!
 //! A refined mesh is built from the problem's [`crate::mesh::MeshSpec`] at the sizes of
 //! the mesh solved, so discontinuity meshing's cuts (the base patches the levels are
