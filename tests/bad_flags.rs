@@ -6,6 +6,7 @@ use std::process::{Command, Stdio};
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, MaterialId, Rgb, Scene};
 use nusselt_core::solver::{ProgressiveSolver, SolverConfig, SolverError, StopCriteria};
 
@@ -278,7 +279,7 @@ fn the_solver_refuses_power_that_would_overflow_and_keeps_its_state() {
     .expect("write mtl");
     let scene = Scene::load_obj(&hot, &opts).expect("loads: every value is finite");
     let config = || SolverConfig {
-        element_size: Some(0.25),
+        mesh: MeshSpec::element(0.25),
         ..Default::default()
     };
     match ProgressiveSolver::new(scene, config()) {

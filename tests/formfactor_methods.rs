@@ -16,6 +16,7 @@ use glam::DVec3;
 use nusselt_core::cases::{self, Case};
 use nusselt_core::formfactor::{FormFactorMethod, FormFactorParams, contour, exact};
 use nusselt_core::geometry::polygon;
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 
@@ -380,8 +381,6 @@ fn cubature_tolerance(c: &Case, method: FormFactorMethod, params: &FormFactorPar
     2.0 * (at(params.cubature_depth) - at(params.cubature_depth + 2)).abs() + 1e-12
 }
 
-// Long by design: every method on every occluded case of the catalogue, with each method's
-// own tolerance, in one table of checks.
 #[test]
 fn every_method_honours_occluders() {
     let occluded = load("formfactors_occluded.json");
@@ -499,8 +498,7 @@ fn cornell_with(
 ) -> ProgressiveSolver {
     let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
     let config = SolverConfig {
-        element_size: Some(element),
-        patch_size: Some(patch),
+        mesh: MeshSpec::sized(element, patch),
         formfactor: nusselt_core::solver::FormFactorConfig {
             method,
             params: FormFactorParams {
@@ -718,8 +716,7 @@ fn hybrid_counts_hemicube_receivers_like_its_element_rule() {
     for (k, min_pixels, res) in [(5.0, 64.0, 256), (2.0, 0.0, 256), (1.0, 4.0, 64)] {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         let config = SolverConfig {
-            element_size: Some(30.0),
-            patch_size: Some(60.0),
+            mesh: MeshSpec::sized(30.0, 60.0),
             formfactor: nusselt_core::solver::FormFactorConfig {
                 params: FormFactorParams {
                     hybrid_k: k,

@@ -11,6 +11,7 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use gltf::mesh::Semantic;
+use nusselt_core::mesh::MeshSpec;
 
 const MTL: &str = include_str!("../assets/cornell.mtl");
 
@@ -328,8 +329,7 @@ fn viewer_snapshot_export_validates() {
     let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
     let config = ThreadConfig {
         solver: SolverConfig {
-            element_size: Some(60.0),
-            patch_size: Some(120.0),
+            mesh: MeshSpec::sized(60.0, 120.0),
             ..Default::default()
         },
         max_shots: Some(20),

@@ -12,9 +12,9 @@ use nusselt_core::formfactor::hemicube::{
     self, DeltaTable, Hemicube, HemicubeView, ItemBufferRaster, NONE,
 };
 use nusselt_core::formfactor::{FormFactorMethod, FormFactorParams};
-use nusselt_core::mesh::PatchId;
+use nusselt_core::mesh::{MeshSpec, PatchId};
 use nusselt_core::scene::{LoadOptions, Scene};
-use nusselt_core::solver::{FormFactorConfig, ProgressiveSolver, SolverConfig, StopCriteria};
+use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 use nusselt_gpu::GpuHemicube;
 
 mod common;
@@ -45,9 +45,8 @@ fn cornell_config(
     raster: Option<Arc<dyn ItemBufferRaster>>,
 ) -> SolverConfig {
     SolverConfig {
-        element_size: Some(40.0),
-        patch_size: Some(80.0),
-        formfactor: FormFactorConfig {
+        mesh: MeshSpec::sized(40.0, 80.0),
+        formfactor: nusselt_core::solver::FormFactorConfig {
             method,
             params: FormFactorParams {
                 hemicube_res: 128,

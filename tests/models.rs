@@ -19,6 +19,7 @@ use std::process::Command;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::render::{self, Image, RenderSettings, SolutionView};
 use nusselt_core::scene::{Camera, LoadOptions, Scene};
 use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
@@ -48,8 +49,7 @@ fn coarse_solver(scene: Scene) -> ProgressiveSolver {
     ProgressiveSolver::new(
         scene,
         SolverConfig {
-            element_size: Some(d / 25.0),
-            patch_size: Some(d / 8.0),
+            mesh: MeshSpec::sized(d / 25.0, d / 8.0),
             ..Default::default()
         },
     )
@@ -174,8 +174,7 @@ fn default_view_shows_every_model() {
         let s = ProgressiveSolver::new(
             scene,
             SolverConfig {
-                element_size: Some(d / 8.0),
-                patch_size: Some(d / 8.0),
+                mesh: MeshSpec::sized(d / 8.0, d / 8.0),
                 ..Default::default()
             },
         )
@@ -423,8 +422,7 @@ fn scale_series_shoots_the_same_patches_in_the_same_order() {
         let mut s = ProgressiveSolver::new(
             scene,
             SolverConfig {
-                element_size: Some(diag / 25.0 * scale),
-                patch_size: Some(diag / 8.0 * scale),
+                mesh: MeshSpec::sized(diag / 25.0 * scale, diag / 8.0 * scale),
                 ..Default::default()
             },
         )
@@ -673,8 +671,7 @@ proptest! {
         };
         let d = scene.bounds().diagonal();
         let config = SolverConfig {
-            element_size: Some((d / 10.0).max(1e-3)),
-            patch_size: Some((d / 4.0).max(1e-3)),
+            mesh: MeshSpec::sized((d / 10.0).max(1e-3), (d / 4.0).max(1e-3)),
             ..Default::default()
         };
         let Ok(mut s) = ProgressiveSolver::new(scene, config) else {

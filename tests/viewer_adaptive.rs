@@ -6,6 +6,7 @@
 
 use std::time::{Duration, Instant};
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::SolverConfig;
 use nusselt_viewer::solver_thread::{Command, SolverHandle, ThreadConfig};
@@ -17,7 +18,7 @@ fn the_mesh_grows_where_the_light_varies_then_converges() {
         scene,
         ThreadConfig {
             solver: SolverConfig {
-                element_size: Some(80.0),
+                mesh: MeshSpec::element(80.0),
                 ..Default::default()
             },
             play: false,

@@ -6,6 +6,7 @@
 
 use std::time::{Duration, Instant};
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::SolverConfig;
 use nusselt_viewer::snapshot::Snapshot;
@@ -57,8 +58,7 @@ fn a_panic_in_a_shot_is_reported_and_the_thread_loads_the_next_scene() {
             cornell(),
             ThreadConfig {
                 solver: SolverConfig {
-                    element_size: Some(60.0),
-                    patch_size: Some(120.0),
+                    mesh: MeshSpec::sized(60.0, 120.0),
                     ..Default::default()
                 },
                 play: false,

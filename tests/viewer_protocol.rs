@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 
 use nusselt_core::formfactor::FormFactorMethod;
 use nusselt_core::geometry::Rng;
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, MaterialId, Scene};
 use nusselt_core::solver::{ProgressiveSolver, SolverConfig, SolverKind, StopCriteria};
 use nusselt_viewer::snapshot::Snapshot;
@@ -19,8 +20,7 @@ fn cornell() -> Scene {
 
 fn coarse_config() -> SolverConfig {
     SolverConfig {
-        element_size: Some(60.0),
-        patch_size: Some(120.0),
+        mesh: MeshSpec::sized(60.0, 120.0),
         ..Default::default()
     }
 }

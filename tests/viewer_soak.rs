@@ -11,6 +11,7 @@ use std::time::{Duration, Instant};
 use glam::DVec3;
 use nusselt_core::formfactor::FormFactorMethod;
 use nusselt_core::geometry::Rng;
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{AreaLight, Light, LoadOptions, MaterialId, Scene};
 use nusselt_core::solver::{SolverConfig, SolverKind};
 use nusselt_viewer::solver_thread::{Command, SolverHandle, ThreadConfig};
@@ -176,8 +177,7 @@ fn ten_thousand_random_commands_keep_the_thread_answering_and_memory_flat() {
         cornell(),
         ThreadConfig {
             solver: SolverConfig {
-                element_size: Some(60.0),
-                patch_size: Some(120.0),
+                mesh: MeshSpec::sized(60.0, 120.0),
                 memory_bytes: BUDGET,
                 ..Default::default()
             },

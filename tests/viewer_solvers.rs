@@ -7,6 +7,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{ProgressiveSolver, SolverConfig, SolverKind, StopCriteria};
 use nusselt_viewer::snapshot::{Geometry, Snapshot};
@@ -18,8 +19,7 @@ fn cornell() -> Scene {
 
 fn coarse_config() -> SolverConfig {
     SolverConfig {
-        element_size: Some(60.0),
-        patch_size: Some(120.0),
+        mesh: MeshSpec::sized(60.0, 120.0),
         ..Default::default()
     }
 }

@@ -6,6 +6,7 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::SolverConfig;
 use nusselt_viewer::snapshot::Snapshot;
@@ -49,8 +50,7 @@ fn steps_back_hemicube_and_matrix_over_the_thread() {
         scene,
         ThreadConfig {
             solver: SolverConfig {
-                element_size: Some(60.0),
-                patch_size: Some(120.0),
+                mesh: MeshSpec::sized(60.0, 120.0),
                 ..Default::default()
             },
             play: false,
@@ -140,8 +140,7 @@ fn the_matrix_view_refuses_too_many_patches() {
         scene,
         ThreadConfig {
             solver: SolverConfig {
-                element_size: Some(20.0),
-                patch_size: Some(20.0),
+                mesh: MeshSpec::sized(20.0, 20.0),
                 ..Default::default()
             },
             play: false,
@@ -182,8 +181,7 @@ fn compare_and_mesh_views_over_the_thread() {
         scene,
         ThreadConfig {
             solver: SolverConfig {
-                element_size: Some(60.0),
-                patch_size: Some(120.0),
+                mesh: MeshSpec::sized(60.0, 120.0),
                 ..Default::default()
             },
             play: false,

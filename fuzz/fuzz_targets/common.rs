@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 
+use nusselt::mesh::MeshSpec;
 use nusselt::render::{self, RenderSettings, SolutionView};
 use nusselt::scene::Scene;
 use nusselt::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
@@ -29,8 +30,7 @@ pub fn scratch() -> PathBuf {
 pub fn solve_and_render(scene: Scene) {
     let d = scene.bounds().diagonal();
     let config = SolverConfig {
-        element_size: Some(d / 6.0),
-        patch_size: Some(d / 3.0),
+        mesh: MeshSpec::sized(d / 6.0, d / 3.0),
         ..Default::default()
     };
     let Ok(mut s) = ProgressiveSolver::new(scene, config) else {

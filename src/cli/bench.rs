@@ -17,6 +17,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, MaterialId, Rgb, Scene};
 
 use super::plot::{self, Plot, Series};
@@ -170,8 +171,7 @@ fn builtin(name: &str, rho: Option<f64>) -> Result<Scene> {
 /// residual of 1e-10 by the Krylov solver.
 fn cube_reference(rho: f64) -> Result<[f64; 6]> {
     let config = SolverConfig {
-        element_size: Some(0.025),
-        patch_size: Some(0.1),
+        mesh: MeshSpec::sized(0.025, 0.1),
         ..Default::default()
     };
     let mut s = SolverKind::Cg.build(Problem::new(builtin("cube", Some(rho))?, config)?)?;

@@ -9,28 +9,13 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 
 use nusselt_core::formfactor::FormFactorMethod;
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::render::{self, Image, RenderSettings};
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
 
 use super::bench_images::{Recorder, first_time_below, render_elements};
 use super::plot::{self, Plot, Series};
-
-/// One row of `cornell_image.csv`: group, label, elements, steps (or spp), seconds, image
-/// error.
-type Row = (String, String, usize, usize, f64, f64);
-
-/// A `(seconds, image error)` point.
-type Point = (f64, f64);
-
-/// What every run of the benchmark measures against.
-struct Bench<'a> {
-    scene: &'a Scene,
-    reference: &'a Image,
-    mask: &'a [bool],
-    camera: render::Camera,
-    seconds: f64,
-}
 
 /// The Cornell box against the path-traced reference; writes `cornell_image.csv` and plots.
 pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
@@ -46,44 +31,10 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
     let scene = Scene::builtin("cornell", &LoadOptions::default())?;
     let camera = render::view::default_camera(&scene);
     let mask = render::error_mask(&scene, &camera, reference.width, reference.height);
-    let bench = Bench {
-        scene: &scene,
-        reference: &reference,
-        mask: &mask,
-        camera,
-        seconds,
-    };
-    let mut rows: Vec<Row> = Vec::new();
-    let mut curves = solver_curves(&bench, &mut rows)?;
-    let (density, density_direct) = density_runs(&bench, &mut rows)?;
-    adaptive_runs(&bench, &mut rows)?;
-    let methods = method_runs(&bench, &mut rows)?;
-    let traced = path_tracer_runs(&bench, &mut rows)?;
-    write_csv(out, &rows)?;
-    print_table(&rows, &curves, &traced);
-    curves.push(Series {
-        label: "path tracer (doubling spp)".into(),
-        points: traced,
-        markers: false,
-    });
-    curves.push(Series {
-        label: "shooting, element budgets 1,250-40,000".into(),
-        points: density,
-        markers: true,
-    });
-    curves.push(Series {
-        label: "shooting + direct pass (render --pass direct), same budgets".into(),
-        points: density_direct,
-        markers: true,
-    });
-    curves.extend(methods);
-    write_plots(out, &rows, curves)
-}
-
-/// Each solver over time on the default mesh, image error at log-spaced steps: the
-/// "solver" rows, and one plot curve each.
-fn solver_curves(bench: &Bench, rows: &mut Vec<Row>) -> Result<Vec<Series>> {
     let never = AtomicBool::new(false);
+    let mut rows: Vec<(String, String, usize, usize, f64, f64)> = Vec::new();
+
+    // Each solver over time, default mesh.
     let mut curves = Vec::new();
     for (label, kind) in [
         ("shooting", SolverKind::Shooting),
@@ -93,12 +44,12 @@ fn solver_curves(bench: &Bench, rows: &mut Vec<Row>) -> Result<Vec<Series>> {
     ] {
         eprintln!("cornell image: {label}…");
         let start = Instant::now();
-        let mut s = kind.build(Problem::new(bench.scene.clone(), SolverConfig::default())?)?;
-        let bvh = render::display_bvh(bench.scene, &s.problem().mesh);
+        let mut s = kind.build(Problem::new(scene.clone(), SolverConfig::default())?)?;
+        let bvh = render::display_bvh(&scene, &s.problem().mesh);
         let setup = start.elapsed().as_secs_f64();
         let mut rec = Recorder {
-            reference: bench.reference,
-            mask: bench.mask,
+            reference: &reference,
+            mask: &mask,
             paused: 0.0,
             next: 16,
         };
@@ -106,7 +57,7 @@ fn solver_curves(bench: &Bench, rows: &mut Vec<Row>) -> Result<Vec<Series>> {
             residual: 1e-4,
             // The clock here includes the benchmark's renders (about 0.3 s each, at
             // log-spaced steps), which the recorded times leave out.
-            max_seconds: Some(3.0 * bench.seconds),
+            max_seconds: Some(3.0 * seconds),
             ..Default::default()
         };
         let mut points = Vec::new();
@@ -138,89 +89,70 @@ fn solver_curves(bench: &Bench, rows: &mut Vec<Row>) -> Result<Vec<Series>> {
             markers: false,
         });
     }
-    Ok(curves)
-}
 
-/// One whole run to `--unshot 1e-4` (meshing, adaptive refinement where given, solve),
-/// rendered interpolated and by the direct pass: two rows (`GROUP, direct pass` first),
-/// and the whole time and error of each image.
-fn run_to_end(
-    bench: &Bench,
-    rows: &mut Vec<Row>,
-    label: String,
-    config: SolverConfig,
-    adaptive: Option<f64>,
-    group: &str,
-) -> Result<(Point, Point)> {
-    eprintln!("cornell image: {label}…");
-    let start = Instant::now();
-    let mut s = super::bench_images::meshed(bench.scene, config, adaptive)?;
-    let stop = StopCriteria {
-        residual: 1e-4,
-        // The finest meshes need longer than one solver's share.
-        max_seconds: Some(4.0 * bench.seconds),
-        ..Default::default()
+    // Whole runs to --unshot 1e-4: element budgets (contour rows), then form-factor methods.
+    let mut run_to_end = |label: String,
+                          config: SolverConfig,
+                          adaptive: Option<f64>,
+                          group: &str|
+     -> Result<((f64, f64), (f64, f64))> {
+        eprintln!("cornell image: {label}…");
+        let start = Instant::now();
+        let mut s = super::bench_images::meshed(&scene, config, adaptive)?;
+        let stop = StopCriteria {
+            residual: 1e-4,
+            // The finest meshes need longer than one solver's share.
+            max_seconds: Some(4.0 * seconds),
+            ..Default::default()
+        };
+        run_solver(s.as_mut(), &stop, &never, &mut |_, _| {});
+        let solved = start.elapsed().as_secs_f64();
+        let bvh = render::display_bvh(&scene, &s.problem().mesh);
+        let e = render::relative_rms(
+            &render_elements(s.problem(), &s.display_radiance(), &bvh, 16),
+            &reference,
+            &mask,
+        )?;
+        // Whole time to each image: start, mesh, solve, render.
+        let t = start.elapsed().as_secs_f64();
+        let t_direct = Instant::now();
+        let settings = RenderSettings {
+            width: 256,
+            height: 256,
+            spp: 16,
+            camera,
+            seed: 1,
+            edge_spp: nusselt_core::render::DEFAULT_EDGE_SPP,
+        };
+        let direct = render::direct::render_solution(s.problem(), &s.display_radiance(), &settings);
+        let e_direct = render::relative_rms(&direct, &reference, &mask)?;
+        let t_direct = solved + t_direct.elapsed().as_secs_f64();
+        let n = s.problem().mesh.elements.len();
+        rows.push((
+            format!("{group}, direct pass"),
+            label.clone(),
+            n,
+            s.steps(),
+            t_direct,
+            e_direct,
+        ));
+        rows.push((group.into(), label, n, s.steps(), t, e));
+        Ok(((t, e), (t_direct, e_direct)))
     };
-    run_solver(s.as_mut(), &stop, &AtomicBool::new(false), &mut |_, _| {});
-    let solved = start.elapsed().as_secs_f64();
-    let bvh = render::display_bvh(bench.scene, &s.problem().mesh);
-    let e = render::relative_rms(
-        &render_elements(s.problem(), &s.display_radiance(), &bvh, 16),
-        bench.reference,
-        bench.mask,
-    )?;
-    // Whole time to each image: start, mesh, solve, render.
-    let t = start.elapsed().as_secs_f64();
-    let t_direct = Instant::now();
-    let settings = RenderSettings {
-        width: 256,
-        height: 256,
-        spp: 16,
-        camera: bench.camera,
-        seed: 1,
-        edge_spp: nusselt_core::render::DEFAULT_EDGE_SPP,
-    };
-    let direct = render::direct::render_solution(s.problem(), &s.display_radiance(), &settings);
-    let e_direct = render::relative_rms(&direct, bench.reference, bench.mask)?;
-    let t_direct = solved + t_direct.elapsed().as_secs_f64();
-    let n = s.problem().mesh.elements.len();
-    rows.push((
-        format!("{group}, direct pass"),
-        label.clone(),
-        n,
-        s.steps(),
-        t_direct,
-        e_direct,
-    ));
-    rows.push((group.into(), label, n, s.steps(), t, e));
-    Ok(((t, e), (t_direct, e_direct)))
-}
-
-/// Shooting at element budgets 1,250–40,000 (contour rows): the interpolated and the
-/// direct-pass points.
-fn density_runs(bench: &Bench, rows: &mut Vec<Row>) -> Result<(Vec<Point>, Vec<Point>)> {
     let (mut density, mut density_direct) = (Vec::new(), Vec::new());
     for budget in [1_250, 2_500, 5_000, 10_000, 20_000, 40_000] {
         let config = SolverConfig {
-            max_elements: Some(budget),
+            mesh: MeshSpec {
+                max_elements: Some(budget),
+                ..Default::default()
+            },
             ..Default::default()
         };
-        let (vertex, direct) = run_to_end(
-            bench,
-            rows,
-            format!("budget {budget}"),
-            config,
-            None,
-            "density",
-        )?;
+        let (vertex, direct) = run_to_end(format!("budget {budget}"), config, None, "density")?;
         density.push(vertex);
         density_direct.push(direct);
     }
-    Ok((density, density_direct))
-}
-
-/// Adaptive meshing from coarse starts (`render --adaptive TOL`: two refinement passes).
-fn adaptive_runs(bench: &Bench, rows: &mut Vec<Row>) -> Result<()> {
+    // Adaptive meshing from coarse starts (render --adaptive TOL: two refinement passes).
     for (budget, tolerance) in [
         (1_250, 0.1),
         (2_500, 0.1),
@@ -229,23 +161,19 @@ fn adaptive_runs(bench: &Bench, rows: &mut Vec<Row>) -> Result<()> {
         (5_000, 0.05),
     ] {
         let config = SolverConfig {
-            max_elements: Some(budget),
+            mesh: MeshSpec {
+                max_elements: Some(budget),
+                ..Default::default()
+            },
             ..Default::default()
         };
         run_to_end(
-            bench,
-            rows,
             format!("budget {budget}, --adaptive {tolerance}"),
             config,
             Some(tolerance),
             "adaptive",
         )?;
     }
-    Ok(())
-}
-
-/// Each form-factor method at 5,000 elements: one plot point each.
-fn method_runs(bench: &Bench, rows: &mut Vec<Row>) -> Result<Vec<Series>> {
     let mut methods = Vec::new();
     for method in [
         FormFactorMethod::Contour,
@@ -256,41 +184,41 @@ fn method_runs(bench: &Bench, rows: &mut Vec<Row>) -> Result<Vec<Series>> {
         FormFactorMethod::Montecarlo,
     ] {
         let config = SolverConfig {
-            max_elements: Some(5_000),
+            mesh: MeshSpec {
+                max_elements: Some(5_000),
+                ..Default::default()
+            },
             formfactor: nusselt_core::solver::FormFactorConfig {
                 method,
                 ..Default::default()
             },
             ..Default::default()
         };
-        let (point, _) = run_to_end(bench, rows, format!("{method}"), config, None, "method")?;
+        let (point, _) = run_to_end(format!("{method}"), config, None, "method")?;
         methods.push(Series {
             label: format!("{method}, 5,000 elements"),
             points: vec![point],
             markers: true,
         });
     }
-    Ok(methods)
-}
 
-/// The path tracer at doubling sample counts, until a render takes `seconds`.
-fn path_tracer_runs(bench: &Bench, rows: &mut Vec<Row>) -> Result<Vec<Point>> {
+    // The path tracer at doubling sample counts, until a render takes 2 × `seconds`.
     let mut traced = Vec::new();
     let mut spp = 1;
     loop {
         eprintln!("cornell image: path tracer {spp} spp…");
         let start = Instant::now();
         let settings = RenderSettings {
-            width: bench.reference.width,
-            height: bench.reference.height,
+            width: reference.width,
+            height: reference.height,
             spp,
-            camera: bench.camera,
+            camera,
             seed: 7,
             edge_spp: 0,
         };
-        let image = nusselt_core::render::pathtrace::reference(bench.scene, &settings, &|_| {});
+        let image = nusselt_core::render::pathtrace::reference(&scene, &settings, &|_| {});
         let t = start.elapsed().as_secs_f64();
-        let e = render::relative_rms(&image, bench.reference, bench.mask)?;
+        let e = render::relative_rms(&image, &reference, &mask)?;
         rows.push((
             "pathtracer".into(),
             format!("{spp} spp"),
@@ -300,34 +228,24 @@ fn path_tracer_runs(bench: &Bench, rows: &mut Vec<Row>) -> Result<Vec<Point>> {
             e,
         ));
         traced.push((t, e));
-        if t > bench.seconds || spp >= 1 << 16 {
+        if t > seconds || spp >= 1 << 16 {
             break;
         }
         spp *= 2;
     }
-    Ok(traced)
-}
 
-fn write_csv(out: &Path, rows: &[Row]) -> Result<()> {
     let path = out.join("cornell_image.csv");
     let mut csv =
         std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
-    super::bench::provenance(&mut csv)?;
     writeln!(csv, "group,label,elements,steps,seconds,image_error")?;
-    for (g, l, n, k, t, e) in rows {
+    for (g, l, n, k, t, e) in &rows {
         writeln!(csv, "{g},{l},{n},{k},{t:.4},{e:.5e}")?;
     }
-    Ok(())
-}
-
-/// The table on stdout (each run's end point), then radiosity's (the first curve:
-/// shooting, default mesh) and the path tracer's time to 5 %, 2 %, 1.5 % and 1 %.
-fn print_table(rows: &[Row], curves: &[Series], traced: &[Point]) {
     println!(
         "\n| Cornell box vs path-traced reference | elements | steps / spp | seconds | image error |"
     );
     println!("|---|---:|---:|---:|---:|");
-    for (g, l, n, k, t, e) in rows {
+    for (g, l, n, k, t, e) in &rows {
         let last_of_run = g != "solver"
             || rows
                 .iter()
@@ -358,11 +276,22 @@ fn print_table(rows: &[Row], curves: &[Series], traced: &[Point]) {
                 .unwrap_or("not reached".into()),
         );
     }
-}
-
-/// `cornell_elements` (error against element count, by meshing) and `cornell_image`
-/// (error against time, `curves`).
-fn write_plots(out: &Path, rows: &[Row], curves: Vec<Series>) -> Result<()> {
+    curves.push(Series {
+        label: "path tracer (doubling spp)".into(),
+        points: traced,
+        markers: false,
+    });
+    curves.push(Series {
+        label: "shooting, element budgets 1,250-40,000".into(),
+        points: density,
+        markers: true,
+    });
+    curves.push(Series {
+        label: "shooting + direct pass (render --pass direct), same budgets".into(),
+        points: density_direct,
+        markers: true,
+    });
+    curves.extend(methods);
     let by_elements = |group: &str| -> Vec<(f64, f64)> {
         rows.iter()
             .filter(|r| r.0 == group)
@@ -407,5 +336,6 @@ fn write_plots(out: &Path, rows: &[Row], curves: Vec<Series>) -> Result<()> {
             y_label: "relative RMS image error",
             series: curves,
         },
-    )
+    )?;
+    Ok(())
 }

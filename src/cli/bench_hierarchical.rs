@@ -16,6 +16,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::render::{self, Image};
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{Problem, SolverConfig, SolverKind, StopCriteria, run_solver};
@@ -161,7 +162,10 @@ pub fn large(out: &Path, cornell_reference: &Path, gallery_reference: &Path) -> 
         ] {
             reset_peak();
             let config = SolverConfig {
-                max_elements,
+                mesh: MeshSpec {
+                    max_elements,
+                    ..Default::default()
+                },
                 ..SolverConfig::default()
             };
             let start = Instant::now();

@@ -98,6 +98,7 @@ pub fn meshed(
                 tolerance,
                 2,
                 1e-4,
+                &std::sync::atomic::AtomicBool::new(false),
             )?
             .solver
         }

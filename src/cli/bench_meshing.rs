@@ -11,6 +11,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::render::{self, Image, RenderSettings};
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{SolverConfig, StopCriteria, run_solver};
@@ -109,8 +110,11 @@ fn measure_all(setup: &Setup) -> Result<Vec<Row>> {
     for budget in [2_500, 5_000, 10_000, 20_000, 40_000] {
         for (kind, discontinuity) in [("uniform", false), ("discontinuity", true)] {
             let config = SolverConfig {
-                max_elements: Some(budget),
-                discontinuity,
+                mesh: MeshSpec {
+                    max_elements: Some(budget),
+                    discontinuity,
+                    ..Default::default()
+                },
                 ..Default::default()
             };
             rows.push(measure(
@@ -133,7 +137,10 @@ fn measure_all(setup: &Setup) -> Result<Vec<Row>> {
         (5_000, 0.05),
     ] {
         let config = SolverConfig {
-            max_elements: Some(budget),
+            mesh: MeshSpec {
+                max_elements: Some(budget),
+                ..Default::default()
+            },
             ..Default::default()
         };
         let label = format!("budget {budget}, --adaptive {tolerance}");

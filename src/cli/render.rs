@@ -14,6 +14,7 @@ use super::pass::{PassChoice, parse_pass, render_chosen};
 use super::render_report::{Report, Solved};
 use super::{MAX_RAYS, MAX_VIS_RAYS, SceneArgs, ViewArgs, check_count, check_output};
 use nusselt_core::formfactor::{FormFactorMethod, FormFactorParams};
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::render::{self, Image};
 use nusselt_core::scene::Rgb;
 use nusselt_core::scene::file::MeshEntry;
@@ -441,11 +442,13 @@ fn check_flags(args: &RenderArgs) -> Result<Plan> {
 fn solver_config(args: &RenderArgs, plan: &Plan) -> Result<SolverConfig> {
     let method = plan.method;
     Ok(SolverConfig {
-        element_size: args.element_size.or(plan.file_mesh.element_size),
-        patch_size: plan.patch_size,
-        max_elements: plan.max_elements,
+        mesh: MeshSpec {
+            element_size: args.element_size.or(plan.file_mesh.element_size),
+            patch_size: plan.patch_size,
+            max_elements: plan.max_elements,
+            discontinuity: args.discontinuity || plan.file_mesh.discontinuity,
+        },
         memory_bytes: max_memory_bytes(args.max_memory)?,
-        discontinuity: args.discontinuity || plan.file_mesh.discontinuity,
         formfactor: FormFactorConfig {
             method,
             params: FormFactorParams {
@@ -511,6 +514,7 @@ fn solver_for(
                 tolerance,
                 args.adaptive_passes,
                 unshot,
+                &std::sync::atomic::AtomicBool::new(false),
             )?;
             if let Some(why) = &refined.stopped {
                 eprintln!("note: {why}");

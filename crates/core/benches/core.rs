@@ -11,7 +11,7 @@ use std::sync::atomic::AtomicBool;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::DVec3;
 use nusselt_core::geometry::{Bvh, Ray, Rng};
-use nusselt_core::mesh::Mesh;
+use nusselt_core::mesh::{Mesh, MeshSpec};
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{ProgressiveSolver, SolverConfig, SolverKind, StopCriteria, run_solver};
 
@@ -31,7 +31,7 @@ fn segments(mesh: &Mesh, n: usize) -> Vec<(DVec3, DVec3)> {
 
 fn bvh_rays(c: &mut Criterion) {
     let scene = cornell();
-    let mesh = Mesh::build(&scene, 20.0).expect("mesh");
+    let mesh = Mesh::build(&scene, &MeshSpec::element(20.0)).expect("mesh");
     let bvh = Bvh::build(&mesh.blocker_triangles(&scene));
     let segs = segments(&mesh, 100_000);
     let mut g = c.benchmark_group("bvh");
@@ -82,8 +82,7 @@ fn solve(c: &mut Criterion) {
     g.bench_function("cornell_solve_to_1e-3_element_24mm", |b| {
         b.iter(|| {
             let config = SolverConfig {
-                element_size: Some(24.0),
-                patch_size: Some(48.0),
+                mesh: MeshSpec::sized(24.0, 48.0),
                 ..Default::default()
             };
             let mut s = ProgressiveSolver::new(cornell(), config).expect("solver");

@@ -116,119 +116,27 @@ pub fn evaluate_with(
     params: &FormFactorParams,
     raster: Option<&dyn ItemBufferRaster>,
 ) -> Result<f64, RasterError> {
-    let a2 = to_vecs(&case.a2);
-    let occluders: Vec<Vec<DVec3>> = case.occluders.iter().map(|o| to_vecs(o)).collect();
-    let bvh = occluder_bvh(&occluders);
-    let scale = polygon::area(&a2).sqrt();
-    let m = ((params.visibility_rays.max(1) as f64).sqrt().round() as u32).max(1);
-    let eps = 1e-9 * scale.max(1e-12);
-    let sampler = PolygonSampler::new(&a2);
-    // Like the solver's contour rows: few blockers have their shadows clipped away exactly,
-    // many are sampled with weighted shadow rays.
-    let few_blockers = bvh.triangle_count() <= params.exact_blockers;
-    let point_value = |p: DVec3, n: DVec3, rng: &mut Rng| {
-        if occluders.is_empty() {
-            contour::point_to_polygon(p, n, &a2)
-        } else if few_blockers {
-            exact::point_to_visible_polygon(p, n, &a2, &occluders)
-        } else {
-            occluded_point_to_polygon(&bvh, p, n, &a2, &sampler, m, false, eps, [u32::MAX; 2], rng)
-        }
-    };
-    let point = match (case.point, case.point_normal) {
-        (Some(p), Some(n)) => Some((
-            DVec3::from_array(p),
-            DVec3::from_array(n).try_normalize().unwrap_or(DVec3::Z),
-        )),
-        _ => None,
-    };
-    let a1 = to_vecs(&case.a1);
+    let g = CaseGeometry::new(case, params);
     let mut rng = Rng::new(params.seed, 0);
     let value = match method {
-        FormFactorMethod::Contour => {
-            if let Some((p, n)) = point {
-                return Ok(point_value(p, n, &mut rng));
-            }
-            // Clipped shadows have kinks, sampled visibility is noisy: refine a bounded number of
-            // levels, not to 1e-10.
-            let depth = if occluders.is_empty() {
-                14
-            } else if few_blockers {
-                params.cubature_depth
-            } else {
-                2
-            };
-            integrate_over(&a1, depth, &mut |p, n| point_value(p, n, &mut rng))
-        }
-        FormFactorMethod::Exact => {
-            if let Some((p, n)) = point {
-                return Ok(exact::point_to_visible_polygon(p, n, &a2, &occluders));
-            }
-            if occluders.is_empty() {
-                return Ok(exact::polygon_to_polygon(&a1, &a2));
-            }
-            integrate_over_with_floor(&a1, params.cubature_depth, 1e-13, &mut |p, n| {
-                exact::point_to_visible_polygon(p, n, &a2, &occluders)
-            })
-        }
+        FormFactorMethod::Contour => g.contour(params, &mut rng),
+        FormFactorMethod::Exact => g.exact(params),
         FormFactorMethod::Hemicube => {
-            hemicube_case(point, &a1, &a2, &occluders, params, None, &mut rng)?
+            hemicube_case(g.point, &g.a1, &g.a2, &g.occluders, params, None, &mut rng)?
         }
-        FormFactorMethod::GpuHemicube => {
-            hemicube_case(point, &a1, &a2, &occluders, params, raster, &mut rng)?
-        }
-        FormFactorMethod::Raycast => {
-            let mut tris = triangles(&a2, 0);
-            for o in &occluders {
-                tris.extend(triangles(o, 1));
-            }
-            let scene = Bvh::build(&tris);
-            let from = match point {
-                Some((p, n)) => raycast::Origin::Point(p, n),
-                None => raycast::Origin::Polygon(PolygonSampler::new(&a1)),
-            };
-            raycast::hit_fraction(&scene, from, 0, params.rays as u64, eps, &mut rng)
-        }
-        FormFactorMethod::Montecarlo => {
-            let a1_sampler;
-            let receiver = match point {
-                Some((p, n)) => montecarlo::Receiver::Point(p, n),
-                None => {
-                    a1_sampler = PolygonSampler::new(&a1);
-                    montecarlo::Receiver::Polygon(&a1_sampler)
-                }
-            };
-            let blockers = (!occluders.is_empty()).then_some(&bvh);
-            montecarlo::estimate(
-                &receiver,
-                &sampler,
-                polygon::area(&a2),
-                blockers,
-                [u32::MAX; 2],
-                eps,
-                params.rays as u64,
-                &mut rng,
-            )
-        }
+        FormFactorMethod::GpuHemicube => hemicube_case(
+            g.point,
+            &g.a1,
+            &g.a2,
+            &g.occluders,
+            params,
+            raster,
+            &mut rng,
+        )?,
+        FormFactorMethod::Raycast => g.raycast(params, &mut rng),
+        FormFactorMethod::Montecarlo => g.montecarlo(params, &mut rng),
         FormFactorMethod::Hybrid => {
-            let (c1, area1) = match point {
-                Some((p, _)) => (p, 0.0),
-                None => (polygon::centroid(&a1), polygon::area(&a1)),
-            };
-            let omega = hemicube::DeltaTable::pixel_solid_angle_at(params.hemicube_res);
-            // The hemicube sits on A1 (the "shooter"); A2 is what it sees.
-            let n2 = polygon::normal(&a2).unwrap_or(DVec3::Z);
-            let use_analytic = hybrid::analytic(
-                params,
-                omega,
-                false,
-                c1,
-                area1,
-                polygon::centroid(&a2),
-                n2,
-                polygon::area(&a2),
-            );
-            if use_analytic {
+            if g.hybrid_is_analytic(params) {
                 evaluate(case, FormFactorMethod::Contour, params)
             } else {
                 evaluate(case, FormFactorMethod::Hemicube, params)
@@ -236,6 +144,144 @@ pub fn evaluate_with(
         }
     };
     Ok(value)
+}
+
+/// A case's polygons, blockers and the sampling settings its estimators share.
+struct CaseGeometry {
+    a1: Vec<DVec3>,
+    a2: Vec<DVec3>,
+    occluders: Vec<Vec<DVec3>>,
+    bvh: Bvh,
+    /// The receiving point and its normal, when the case is point-to-polygon.
+    point: Option<(DVec3, DVec3)>,
+    sampler: PolygonSampler,
+    /// Shadow rays per side of the visibility grid.
+    m: u32,
+    eps: f64,
+    /// Like the solver's contour rows: few blockers have their shadows clipped away
+    /// exactly, many are sampled with weighted shadow rays.
+    few_blockers: bool,
+}
+
+impl CaseGeometry {
+    fn new(case: &Case, params: &FormFactorParams) -> Self {
+        let a2 = to_vecs(&case.a2);
+        let occluders: Vec<Vec<DVec3>> = case.occluders.iter().map(|o| to_vecs(o)).collect();
+        let bvh = occluder_bvh(&occluders);
+        let scale = polygon::area(&a2).sqrt();
+        let point = match (case.point, case.point_normal) {
+            (Some(p), Some(n)) => Some((
+                DVec3::from_array(p),
+                DVec3::from_array(n).try_normalize().unwrap_or(DVec3::Z),
+            )),
+            _ => None,
+        };
+        Self {
+            a1: to_vecs(&case.a1),
+            sampler: PolygonSampler::new(&a2),
+            few_blockers: bvh.triangle_count() <= params.exact_blockers,
+            m: ((params.visibility_rays.max(1) as f64).sqrt().round() as u32).max(1),
+            eps: 1e-9 * scale.max(1e-12),
+            a2,
+            occluders,
+            bvh,
+            point,
+        }
+    }
+
+    /// The contour integral's point-to-polygon value at `p` (normal `n`), blockers clipped
+    /// or sampled.
+    fn point_value(&self, p: DVec3, n: DVec3, rng: &mut Rng) -> f64 {
+        let (a2, occluders) = (&self.a2, &self.occluders);
+        if occluders.is_empty() {
+            contour::point_to_polygon(p, n, a2)
+        } else if self.few_blockers {
+            exact::point_to_visible_polygon(p, n, a2, occluders)
+        } else {
+            let (sampler, m, eps) = (&self.sampler, self.m, self.eps);
+            let no_skip = [u32::MAX; 2];
+            occluded_point_to_polygon(&self.bvh, p, n, a2, sampler, m, false, eps, no_skip, rng)
+        }
+    }
+
+    fn contour(&self, params: &FormFactorParams, rng: &mut Rng) -> f64 {
+        if let Some((p, n)) = self.point {
+            return self.point_value(p, n, rng);
+        }
+        // Clipped shadows have kinks, sampled visibility is noisy: refine a bounded number
+        // of levels, not to 1e-10.
+        let depth = if self.occluders.is_empty() {
+            14
+        } else if self.few_blockers {
+            params.cubature_depth
+        } else {
+            2
+        };
+        integrate_over(&self.a1, depth, &mut |p, n| self.point_value(p, n, rng))
+    }
+
+    fn exact(&self, params: &FormFactorParams) -> f64 {
+        let (a2, occluders) = (&self.a2, &self.occluders);
+        if let Some((p, n)) = self.point {
+            return exact::point_to_visible_polygon(p, n, a2, occluders);
+        }
+        if occluders.is_empty() {
+            return exact::polygon_to_polygon(&self.a1, a2);
+        }
+        integrate_over_with_floor(&self.a1, params.cubature_depth, 1e-13, &mut |p, n| {
+            exact::point_to_visible_polygon(p, n, a2, occluders)
+        })
+    }
+
+    fn raycast(&self, params: &FormFactorParams, rng: &mut Rng) -> f64 {
+        let mut tris = triangles(&self.a2, 0);
+        for o in &self.occluders {
+            tris.extend(triangles(o, 1));
+        }
+        let scene = Bvh::build(&tris);
+        let from = match self.point {
+            Some((p, n)) => raycast::Origin::Point(p, n),
+            None => raycast::Origin::Polygon(PolygonSampler::new(&self.a1)),
+        };
+        raycast::hit_fraction(&scene, from, 0, params.rays as u64, self.eps, rng)
+    }
+
+    fn montecarlo(&self, params: &FormFactorParams, rng: &mut Rng) -> f64 {
+        let a1_sampler;
+        let receiver = match self.point {
+            Some((p, n)) => montecarlo::Receiver::Point(p, n),
+            None => {
+                a1_sampler = PolygonSampler::new(&self.a1);
+                montecarlo::Receiver::Polygon(&a1_sampler)
+            }
+        };
+        let blockers = (!self.occluders.is_empty()).then_some(&self.bvh);
+        montecarlo::estimate(
+            &receiver,
+            &self.sampler,
+            polygon::area(&self.a2),
+            blockers,
+            [u32::MAX; 2],
+            self.eps,
+            params.rays as u64,
+            rng,
+        )
+    }
+
+    /// Whether the hybrid method takes the analytic (contour) form factor for this case
+    /// rather than the hemicube.
+    fn hybrid_is_analytic(&self, params: &FormFactorParams) -> bool {
+        let (c1, area1) = match self.point {
+            Some((p, _)) => (p, 0.0),
+            None => (polygon::centroid(&self.a1), polygon::area(&self.a1)),
+        };
+        let a2 = &self.a2;
+        let omega = hemicube::DeltaTable::pixel_solid_angle_at(params.hemicube_res);
+        // The hemicube sits on A1 (the "shooter"); A2 is what it sees.
+        let n2 = polygon::normal(a2).unwrap_or(DVec3::Z);
+        let (c2, area2) = (polygon::centroid(a2), polygon::area(a2));
+        hybrid::analytic(params, omega, false, c1, area1, c2, n2, area2)
+    }
 }
 
 fn triangles(poly: &[DVec3], id: u32) -> Vec<TriangleInput> {

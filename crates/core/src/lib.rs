@@ -20,13 +20,14 @@
 //! ```
 //! use std::sync::atomic::AtomicBool;
 //!
+//! use nusselt_core::mesh::MeshSpec;
 //! use nusselt_core::render::{self, RenderSettings, SolutionView};
 //! use nusselt_core::scene::{LoadOptions, Scene};
 //! use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 //!
 //! let scene = Scene::builtin("cornell", &LoadOptions::default())?;
 //! let coarse = scene.bounds().diagonal() / 20.0; // the default is 1/80
-//! let config = SolverConfig { element_size: Some(coarse), ..Default::default() };
+//! let config = SolverConfig { mesh: MeshSpec::element(coarse), ..Default::default() };
 //! let mut solver = ProgressiveSolver::new(scene, config)?;
 //! let stop = StopCriteria { residual: 0.0, max_steps: Some(30), max_seconds: None, tolerance: None };
 //! solver.run(&stop, &AtomicBool::new(false), &mut |_shot| {});
@@ -71,7 +72,7 @@
 //! the faces exactly.
 //!
 //! ```
-//! use nusselt_core::mesh::Mesh;
+//! use nusselt_core::mesh::{Mesh, MeshSpec};
 //! use nusselt_core::scene::{LoadOptions, Scene};
 //!
 //! let obj = "mtllib room.mtl
@@ -84,7 +85,7 @@
 //! assert_eq!(scene.faces.len(), 2);
 //! assert!(scene.materials.iter().any(|m| m.name == "light" && m.is_emitter()));
 //!
-//! let mesh = Mesh::build(&scene, 0.125)?;
+//! let mesh = Mesh::build(&scene, &MeshSpec::element(0.125))?;
 //! let area: f64 = mesh.elements.iter().map(|e| e.area).sum();
 //! assert!((area - 1.25).abs() < 1e-12, "{area}");
 //! assert!(mesh.elements.len() >= (1.25 / (0.125 * 0.125)) as usize / 2);

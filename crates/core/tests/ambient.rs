@@ -4,6 +4,7 @@
 
 use std::sync::atomic::AtomicBool;
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, Rgb, Scene};
 use nusselt_core::solver::ambient::RegionalAmbient;
 use nusselt_core::solver::{Problem, ProgressiveSolver, SolverConfig, StopCriteria};
@@ -25,8 +26,7 @@ fn a_closed_uniform_scene_gets_the_classic_ambient_term() {
     )
     .expect("furnace");
     let config = SolverConfig {
-        element_size: Some(0.125),
-        patch_size: Some(0.25),
+        mesh: MeshSpec::sized(0.125, 0.25),
         ..Default::default()
     };
     let problem = Problem::new(scene, config).expect("problem");
@@ -70,7 +70,7 @@ fn right_room_mean(s: &ProgressiveSolver, shown: &[Rgb]) -> f64 {
 fn the_unlit_room_is_not_shown_lit_by_light_that_cannot_reach_it() {
     let scene = Scene::builtin("tworooms", &LoadOptions::default()).expect("tworooms");
     let config = SolverConfig {
-        element_size: Some(0.2),
+        mesh: MeshSpec::element(0.2),
         ..Default::default()
     };
     let mut s = ProgressiveSolver::new(scene, config).expect("solver");

@@ -8,6 +8,7 @@ use std::f64::consts::PI;
 use std::sync::atomic::AtomicBool;
 
 use glam::DVec3;
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::render::{Camera, RenderSettings};
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
@@ -66,8 +67,7 @@ fn solved() -> ProgressiveSolver {
     )
     .expect("scene");
     let config = SolverConfig {
-        element_size: Some(0.1),
-        patch_size: Some(0.25),
+        mesh: MeshSpec::sized(0.1, 0.25),
         ..Default::default()
     };
     let mut s = ProgressiveSolver::new(scene, config).expect("solver");

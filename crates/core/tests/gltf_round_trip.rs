@@ -6,6 +6,7 @@ use std::collections::HashMap;
 use std::sync::atomic::AtomicBool;
 
 use nusselt_core::export::{BakedMesh, GltfInput, write_gltf};
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, Rgb, Scene};
 use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 
@@ -42,7 +43,10 @@ fn the_cornell_box_round_trips_through_gltf() {
     let path = dir.path().join("cornell.glb");
     // A coarse first mesh keeps the imported scene small (its faces are these elements).
     let coarse = SolverConfig {
-        max_elements: Some(3000),
+        mesh: MeshSpec {
+            max_elements: Some(3000),
+            ..Default::default()
+        },
         ..Default::default()
     };
     let mut solver = ProgressiveSolver::new(scene.clone(), coarse).expect("solver");

@@ -18,7 +18,7 @@ use common::{assert_sane, unshot_power};
 use std::path::PathBuf;
 
 use glam::DVec3;
-use nusselt_core::mesh::Mesh;
+use nusselt_core::mesh::{Mesh, MeshSpec};
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{ProgressiveSolver, SolverConfig};
 
@@ -39,8 +39,7 @@ fn solver(scene: Scene, element: f64, patch: f64) -> ProgressiveSolver {
     ProgressiveSolver::new(
         scene,
         SolverConfig {
-            element_size: Some(element),
-            patch_size: Some(patch),
+            mesh: MeshSpec::sized(element, patch),
             ..Default::default()
         },
     )
@@ -702,7 +701,7 @@ fn hard_cases_mesh_at_default_size_within_the_budget() {
         let size = nusselt_core::mesh::default_element_size(&scene);
         let patch = nusselt_core::mesh::default_patch_size(size);
         let faces = scene.faces.len();
-        match Mesh::build_with(&scene, size, patch.max(size)) {
+        match Mesh::build(&scene, &MeshSpec::sized(size, patch.max(size))) {
             Ok(m) => report.push((p.clone(), faces, m.elements.len(), m.patches.len())),
             Err(e) => {
                 eprintln!("{}: {e}", p.display());
@@ -735,7 +734,7 @@ fn a_vertex_stretched_far_out_meshes_within_the_element_budget() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../tests/data/fuzz/stretched_vertex.obj");
     let scene = nusselt_core::scene::Scene::load_obj(&path, &Default::default()).expect("loads");
-    let mesh = nusselt_core::mesh::Mesh::build_for_budget(&scene, None, None).expect("meshes");
+    let mesh = nusselt_core::mesh::Mesh::build(&scene, &MeshSpec::default()).expect("meshes");
     let budget = nusselt_core::mesh::ELEMENT_BUDGET;
     assert!(
         mesh.elements.len() <= 2 * budget,

@@ -5,6 +5,7 @@ use std::f64::consts::PI;
 use std::sync::atomic::AtomicBool;
 
 use glam::DVec3;
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{Light, LoadOptions, Scene};
 use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 
@@ -30,8 +31,7 @@ fn solver(scene: Scene, size: f64) -> ProgressiveSolver {
     ProgressiveSolver::new(
         scene,
         SolverConfig {
-            element_size: Some(size),
-            patch_size: Some(size),
+            mesh: MeshSpec::sized(size, size),
             ..Default::default()
         },
     )
@@ -203,7 +203,7 @@ fn a_light_edit_converges_to_a_fresh_solve() {
         scene
     };
     let config = SolverConfig {
-        element_size: Some(60.0),
+        mesh: MeshSpec::element(60.0),
         ..Default::default()
     };
     let mut edited = ProgressiveSolver::new(make(1e5), config.clone()).expect("solver");

@@ -3,6 +3,7 @@
 use std::sync::atomic::AtomicBool;
 
 use glam::DVec3;
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{
     FormFactorConfig, ProgressiveSolver, ShootingOptions, SolverConfig, StopCriteria,
@@ -27,8 +28,7 @@ fn furnace_with(rho: f64, size: f64, overshoot: bool) -> ProgressiveSolver {
     ProgressiveSolver::new(
         scene,
         SolverConfig {
-            element_size: Some(size),
-            patch_size: Some(0.5),
+            mesh: MeshSpec::sized(size, 0.5),
             shooting: ShootingOptions {
                 overshoot,
                 regional_ambient: false,
@@ -121,7 +121,7 @@ fn partial_emission_box(mtl: &str) -> ProgressiveSolver {
     let mut s = ProgressiveSolver::new(
         scene,
         SolverConfig {
-            element_size: Some(0.1),
+            mesh: MeshSpec::element(0.1),
             ..Default::default()
         },
     )
@@ -179,8 +179,7 @@ fn power_balances_with_mixed_reflectances() {
 fn cornell_solver(seed: u64) -> ProgressiveSolver {
     let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
     let config = SolverConfig {
-        element_size: Some(60.0),
-        patch_size: Some(120.0),
+        mesh: MeshSpec::sized(60.0, 120.0),
         formfactor: FormFactorConfig {
             params: nusselt_core::formfactor::FormFactorParams {
                 seed,
@@ -290,8 +289,7 @@ usemtl lamp\nv 0.4 1 0.4\nv 0.6 1 0.4\nv 0.6 1 0.6\nv 0.4 1 0.6\nf 5 8 7 6\n";
         let mut s = ProgressiveSolver::new(
             scene,
             SolverConfig {
-                element_size: Some(0.25),
-                patch_size: Some(0.5),
+                mesh: MeshSpec::sized(0.25, 0.5),
                 ..Default::default()
             },
         )

@@ -4,6 +4,7 @@
 use std::sync::atomic::AtomicBool;
 
 use nusselt_core::formfactor::FormFactorMethod;
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{
     FormFactorConfig, Problem, Solver, SolverConfig, SolverError, SolverKind, StopCriteria,
@@ -25,8 +26,11 @@ fn furnace_meshed(rho: f64, element_size: Option<f64>, patch_size: Option<f64>) 
     )
     .expect("furnace");
     let config = SolverConfig {
-        element_size,
-        patch_size,
+        mesh: MeshSpec {
+            element_size,
+            patch_size,
+            ..Default::default()
+        },
         ..Default::default()
     };
     Problem::new(scene, config).expect("problem")
@@ -84,8 +88,7 @@ fn every_solver_holds_the_furnace_identity() {
 fn shooting_and_gauss_seidel_agree_per_element() {
     let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
     let config = SolverConfig {
-        element_size: Some(100.0),
-        patch_size: Some(200.0),
+        mesh: MeshSpec::sized(100.0, 200.0),
         formfactor: FormFactorConfig {
             method: FormFactorMethod::Exact,
             ..Default::default()
@@ -193,8 +196,7 @@ fn the_tolerance_stop_leaves_every_element_within_it() {
         )
         .expect("cube");
         let config = SolverConfig {
-            element_size: Some(0.1),
-            patch_size: Some(0.2),
+            mesh: MeshSpec::sized(0.1, 0.2),
             ..Default::default()
         };
         Problem::new(scene, config).expect("problem")
@@ -244,7 +246,7 @@ fn a_mesh_over_the_memory_budget_is_refused_before_meshing() {
     let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
     // The Cornell box is about 555 units a side: 5 units makes ~100 k elements, 100 MiB.
     let config = SolverConfig {
-        element_size: Some(5.0),
+        mesh: MeshSpec::element(5.0),
         memory_bytes: 16 << 20,
         ..Default::default()
     };
@@ -274,7 +276,10 @@ fn a_mesh_over_the_memory_budget_is_refused_before_meshing() {
     let problem = Problem::new(
         scene,
         SolverConfig {
-            element_size: Some(size),
+            mesh: MeshSpec {
+                element_size: Some(size),
+                ..config.mesh
+            },
             ..config
         },
     )

@@ -8,6 +8,7 @@ use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
 use glam::DVec3;
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::render::pathtrace::PathTracer;
 use nusselt_core::render::{Camera, Pass, RenderSettings};
 use nusselt_core::scene::{LoadOptions, Scene};
@@ -48,8 +49,7 @@ fn solve(scene: Scene) -> ProgressiveSolver {
     let mut s = ProgressiveSolver::new(
         scene,
         SolverConfig {
-            element_size: Some(0.125),
-            patch_size: Some(0.125),
+            mesh: MeshSpec::sized(0.125, 0.125),
             ..Default::default()
         },
     )
@@ -175,8 +175,7 @@ fn a_closed_room_of_white_placeholders_converges() {
     let mut s = ProgressiveSolver::new(
         scene,
         SolverConfig {
-            element_size: Some(0.1),
-            patch_size: Some(0.2),
+            mesh: MeshSpec::sized(0.1, 0.2),
             ..Default::default()
         },
     )

@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use eframe::egui;
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{FormFactorConfig, SolverConfig};
 
@@ -72,10 +73,12 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
     };
     ThreadConfig {
         solver: SolverConfig {
-            element_size: options.element_size,
-            patch_size: options.patch_size,
-            max_elements: options.max_elements,
-            discontinuity: options.discontinuity,
+            mesh: MeshSpec {
+                element_size: options.element_size,
+                patch_size: options.patch_size,
+                max_elements: options.max_elements,
+                discontinuity: options.discontinuity,
+            },
             memory_bytes: options.memory_bytes,
             formfactor: FormFactorConfig {
                 method: options.method,
@@ -92,50 +95,6 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
         stop_unshot: options
             .stop_unshot
             .unwrap_or(ThreadConfig::default().stop_unshot),
-    }
-}
-
-/// The side panel as the command line sets it up, with the recently opened files.
-fn panel_state(options: &UiOptions, recent: Vec<PathBuf>) -> PanelState {
-    PanelState {
-        solver_reason: options.solver_reason.clone(),
-        view: ViewSettings {
-            ambient: options.ambient,
-            exposure_stops: options.exposure_stops,
-            element_edges: options.wireframe,
-            patch_outlines: options.patch_outlines,
-            highlight_shooter: options.highlight_shooter,
-            ray_traced: options.ray_traced,
-            textures: options.textures,
-        },
-        element_size: options.element_size.unwrap_or(0.0),
-        element_size_text: String::new(),
-        element_size_error: None,
-        adaptive_tolerance: options.adaptive.unwrap_or(0.25),
-        omega_text: match options.solver {
-            nusselt_core::solver::SolverKind::Sor(Some(w)) => w.to_string(),
-            _ => String::new(),
-        },
-        omega_error: None,
-        editor: None,
-        selection: options.automation.select,
-        recent,
-        messages: Vec::new(),
-        solver_failure: None,
-        show_plot: true,
-        lights: Default::default(),
-    }
-}
-
-/// The steps a scripted screenshot of a teaching view takes first (`--after-shots`: N
-/// clicks on "Shoot once"); none otherwise.
-fn scripted_teach_steps(options: &UiOptions) -> usize {
-    match (options.teach, options.automation.screenshot.as_ref()) {
-        (Some(_), Some(plan)) => match plan.when {
-            ScreenshotWhen::Shots(n) => n,
-            _ => 0,
-        },
-        _ => 0,
     }
 }
 
@@ -160,9 +119,42 @@ impl ViewerApp {
         } else {
             Vec::new()
         };
-        let panel = panel_state(&options, recent);
+        let panel = PanelState {
+            solver_reason: options.solver_reason.clone(),
+            view: ViewSettings {
+                ambient: options.ambient,
+                exposure_stops: options.exposure_stops,
+                element_edges: options.wireframe,
+                patch_outlines: options.patch_outlines,
+                highlight_shooter: options.highlight_shooter,
+                ray_traced: options.ray_traced,
+                textures: options.textures,
+            },
+            element_size: options.element_size.unwrap_or(0.0),
+            element_size_text: String::new(),
+            element_size_error: None,
+            adaptive_tolerance: options.adaptive.unwrap_or(0.25),
+            omega_text: match options.solver {
+                nusselt_core::solver::SolverKind::Sor(Some(w)) => w.to_string(),
+                _ => String::new(),
+            },
+            omega_error: None,
+            editor: None,
+            selection: options.automation.select,
+            recent,
+            messages: Vec::new(),
+            solver_failure: None,
+            show_plot: true,
+            lights: Default::default(),
+        };
         let log_frames = options.automation.frame_log.is_some();
-        let scripted_steps = scripted_teach_steps(&options);
+        let scripted_steps = match (options.teach, options.automation.screenshot.as_ref()) {
+            (Some(_), Some(plan)) => match plan.when {
+                ScreenshotWhen::Shots(n) => n,
+                _ => 0,
+            },
+            _ => 0,
+        };
         let teach = options.teach.map(|v| TeachState {
             projector: options.projector,
             // A scripted screenshot of the comparison: its steps (shooting and gathering).

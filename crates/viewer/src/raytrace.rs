@@ -249,6 +249,7 @@ fn run(slot: &Slot, latest: &Latest<Arc<RayImage>>, waker: &Waker) {
 
 #[cfg(test)]
 mod tests {
+    use nusselt_core::mesh::MeshSpec;
     use std::time::Duration;
 
     use super::*;
@@ -262,7 +263,7 @@ mod tests {
     fn passes_converge_to_the_direct_pass() {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         let config = SolverConfig {
-            element_size: Some(100.0),
+            mesh: MeshSpec::element(100.0),
             ..SolverConfig::default()
         };
         let problem = Problem::new(scene.clone(), config.clone()).expect("problem");

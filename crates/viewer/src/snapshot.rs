@@ -470,13 +470,14 @@ pub(crate) fn vertex_reflectance(geometry: &Geometry, mats: &[Material]) -> Vec<
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nusselt_core::mesh::MeshSpec;
     use nusselt_core::scene::{LoadOptions, Scene};
 
     #[test]
     fn drawn_vertices_are_indexed_and_flat_per_patch() {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         // Patches of 2×2 elements: many vertices lie on patch boundaries.
-        let mesh = Mesh::build_with(&scene, 60.0, 120.0).expect("mesh");
+        let mesh = Mesh::build(&scene, &MeshSpec::sized(60.0, 120.0)).expect("mesh");
         let g = Geometry::from_mesh(1, &mesh);
         assert_eq!(g.indices.len(), 3 * mesh.triangles.len());
         assert_eq!(g.positions.len(), g.patch.len());
@@ -521,6 +522,7 @@ mod tests {
 mod texture_tests {
     use super::*;
     use crate::textures::TextureLayers;
+    use nusselt_core::mesh::MeshSpec;
     use nusselt_core::scene::{LoadOptions, Scene};
     use nusselt_core::solver::SolverConfig;
 
@@ -559,8 +561,7 @@ mod texture_tests {
         std::fs::write(&path, obj).expect("obj");
         let scene = Scene::load_obj(&path, &LoadOptions::default()).expect("loads");
         let config = SolverConfig {
-            element_size: Some(size),
-            patch_size: Some(1.0),
+            mesh: MeshSpec::sized(size, 1.0),
             ..Default::default()
         };
         (Problem::new(scene, config).expect("problem"), dir)
@@ -711,8 +712,7 @@ mod texture_tests {
         std::fs::write(&path, obj).expect("obj");
         let scene = Scene::load_obj(&path, &LoadOptions::default()).expect("loads");
         let config = SolverConfig {
-            element_size: Some(2.0),
-            patch_size: Some(2.0),
+            mesh: MeshSpec::sized(2.0, 2.0),
             ..Default::default()
         };
         let problem = Problem::new(scene, config).expect("problem");
@@ -738,7 +738,7 @@ mod texture_tests {
     fn an_untextured_problem_has_no_texturing() {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         let config = SolverConfig {
-            element_size: Some(120.0),
+            mesh: MeshSpec::element(120.0),
             ..Default::default()
         };
         let problem = Problem::new(scene, config).expect("problem");

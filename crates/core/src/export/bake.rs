@@ -103,6 +103,7 @@ impl BakedMesh {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::MeshSpec;
     use crate::scene::{LoadOptions, Scene};
     use crate::solver::SolverConfig;
 
@@ -112,7 +113,7 @@ mod tests {
     fn irradiance_is_pi_times_what_the_radiance_implies() {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         let config = SolverConfig {
-            element_size: Some(120.0),
+            mesh: MeshSpec::element(120.0),
             ..Default::default()
         };
         let problem = Problem::new(scene, config).expect("problem");

@@ -84,6 +84,7 @@ pub fn refine_levels(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::MeshSpec;
     use crate::scene::{LoadOptions, Scene};
 
     fn cornell() -> Scene {
@@ -93,18 +94,19 @@ mod tests {
     #[test]
     fn refined_patches_tile_their_base_patch_with_smaller_elements() {
         let scene = cornell();
-        let base = Mesh::build_with(&scene, 60.0, 120.0).expect("mesh");
+        let base = Mesh::build(&scene, &MeshSpec::sized(60.0, 120.0)).expect("mesh");
         assert_eq!(
             base.base_patch,
             (0..base.patches.len() as u32).collect::<Vec<_>>()
         );
-        let same = Mesh::build_refined(&scene, 60.0, 120.0, &[], false).expect("mesh");
+        let same = Mesh::build_refined(&scene, &MeshSpec::sized(60.0, 120.0), &[]).expect("mesh");
         assert_eq!(same.elements.len(), base.elements.len());
         // Refine every third base patch once.
         let levels: Vec<u8> = (0..base.patches.len())
             .map(|p| u8::from(p % 3 == 0))
             .collect();
-        let fine = Mesh::build_refined(&scene, 60.0, 120.0, &levels, false).expect("mesh");
+        let fine =
+            Mesh::build_refined(&scene, &MeshSpec::sized(60.0, 120.0), &levels).expect("mesh");
         let mut area = vec![0.0; base.patches.len()];
         let mut count = vec![0usize; base.patches.len()];
         for (p, patch) in fine.patches.iter().enumerate() {
@@ -143,7 +145,7 @@ mod tests {
     #[test]
     fn only_patches_where_the_radiance_steps_are_refined() {
         let scene = cornell();
-        let mesh = Mesh::build_with(&scene, 60.0, 120.0).expect("mesh");
+        let mesh = Mesh::build(&scene, &MeshSpec::sized(60.0, 120.0)).expect("mesh");
         // A step across the plane x = 278 (the box's middle), flat elsewhere.
         let radiance: Vec<Rgb> = mesh
             .elements
@@ -176,9 +178,10 @@ mod tests {
     #[test]
     fn where_nothing_varies_any_more_the_mesh_coarsens_a_level_at_a_time() {
         let scene = cornell();
-        let base = Mesh::build_with(&scene, 60.0, 120.0).expect("mesh");
+        let base = Mesh::build(&scene, &MeshSpec::sized(60.0, 120.0)).expect("mesh");
         let levels = vec![2; base.patches.len()];
-        let fine = Mesh::build_refined(&scene, 60.0, 120.0, &levels, false).expect("mesh");
+        let fine =
+            Mesh::build_refined(&scene, &MeshSpec::sized(60.0, 120.0), &levels).expect("mesh");
         // Flat: every patch goes back a level (one per pass).
         let flat = vec![Rgb::ONE; fine.elements.len()];
         assert!(

@@ -8,7 +8,7 @@ use glam::DVec3;
 use super::cluster::{cluster_parts, cluster_patch};
 use super::footprint;
 use super::surfaces::Topology;
-use super::{Element, MAX_ELEMENTS, Mesh, MeshError, Patch, PatchId};
+use super::{Element, MAX_ELEMENTS, Mesh, MeshError, MeshSpec, Patch, PatchId};
 use crate::geometry::polygon;
 use crate::scene::Scene;
 
@@ -27,52 +27,47 @@ enum Unit {
 const SLIVER_RATIO: f64 = 12.0;
 
 impl Mesh {
-    /// Meshes with explicit patch and element sizes (scene units).
-    pub fn build_with(
-        scene: &Scene,
-        element_size: f64,
-        patch_size: f64,
-    ) -> Result<Mesh, MeshError> {
-        Mesh::build_refined(scene, element_size, patch_size, &[], false)
+    /// The mesh of `scene` that `spec` asks for: at its element size (patches
+    /// [`MeshSpec::patch_for`] it), or, with none given, at the size its element budget
+    /// gives (estimated from face areas, then rebuilt coarser at most twice while more than
+    /// 5 % over); the lights' shadow outlines are element edges when `spec.discontinuity`
+    /// ([`super::discontinuity`]).
+    pub fn build(scene: &Scene, spec: &MeshSpec) -> Result<Mesh, MeshError> {
+        Mesh::build_refined(scene, spec, &[])
     }
 
-    /// [`Mesh::build_with`] with the lights' shadow outlines as element edges
-    /// (`--discontinuity`, [`super::discontinuity`]).
-    pub fn build_with_discontinuities(
-        scene: &Scene,
-        element_size: f64,
-        patch_size: f64,
-    ) -> Result<Mesh, MeshError> {
-        Mesh::build_refined(scene, element_size, patch_size, &[], true)
-    }
-
-    /// [`Mesh::build_with`], with patch `i` of that mesh (its *base* patch) refined
-    /// `levels[i]` times (none past the end of `levels`): a planar patch is cut into patches
-    /// `2^level` times smaller, each with elements `2^level` times smaller; a cluster of
-    /// facets keeps one patch and gets the smaller elements. [`Mesh::base_patch`] maps the
-    /// result back, so levels computed from a solution on one mesh apply to the next
-    /// ([`super::adaptive`]). `discontinuity` must be what the base mesh was built with
-    /// ([`Mesh::build_with_discontinuities`]): the base patches of a cut mesh are the cut
-    /// pieces, and the levels are indexed by them.
-    pub fn build_refined(
-        scene: &Scene,
-        element_size: f64,
-        patch_size: f64,
-        levels: &[u8],
-        discontinuity: bool,
-    ) -> Result<Mesh, MeshError> {
+    /// [`Mesh::build`], with patch `i` of that mesh (its *base* patch) refined `levels[i]`
+    /// times (none past the end of `levels`): a planar patch is cut into patches `2^level`
+    /// times smaller, each with elements `2^level` times smaller; a cluster of facets keeps
+    /// one patch and gets the smaller elements. [`Mesh::base_patch`] maps the result back,
+    /// so levels computed from a solution on one mesh apply to the next
+    /// ([`super::adaptive`]) when `spec` is the one that mesh was built from (or names its
+    /// sizes): with discontinuity meshing the base patches are the cut pieces, and the
+    /// levels are indexed by them.
+    pub fn build_refined(scene: &Scene, spec: &MeshSpec, levels: &[u8]) -> Result<Mesh, MeshError> {
+        let topo = Topology::new(scene);
+        let (element_size, patch_size) = match spec.element_size {
+            Some(size) => (size, spec.patch_for(size)),
+            None => {
+                let base = Mesh::build_for_budget(scene, &topo, spec)?;
+                if levels.iter().all(|&l| l == 0) {
+                    return Ok(base);
+                }
+                (base.element_size, base.patch_size)
+            }
+        };
         Mesh::build_from(
             scene,
-            &Topology::new(scene),
+            &topo,
             element_size,
             patch_size,
             levels,
-            discontinuity,
+            spec.discontinuity,
         )
     }
 
-    /// [`Mesh::build_with`] on faces already grouped (the grouping does not depend on the
-    /// sizes, so meshing the same scene again reuses it).
+    /// The mesh at these sizes, on faces already grouped (the grouping does not depend on
+    /// the sizes, so meshing the same scene again reuses it).
     pub(super) fn build_from(
         scene: &Scene,
         topo: &Topology,
@@ -81,241 +76,38 @@ impl Mesh {
         levels: &[u8],
         discontinuity: bool,
     ) -> Result<Mesh, MeshError> {
-        let scale_of =
-            |base: usize| f64::from(1u32 << levels.get(base).copied().unwrap_or(0).min(8));
-        if !(element_size.is_finite() && element_size > 0.0) {
-            return Err(MeshError::BadElementSize(element_size));
-        }
-        if !(patch_size.is_finite() && patch_size > 0.0) {
-            return Err(MeshError::BadPatchSize(patch_size));
-        }
+        check_sizes(scene, element_size, patch_size)?;
         let patch_size = patch_size.max(element_size);
-        let sides = if scene.two_sided { 2 } else { 1 };
-        // Estimate before allocating: a face smaller than an element is one element.
-        let estimate: f64 = scene
-            .faces
-            .iter()
-            .map(|f| (2.0 * polygon::area(&f.vertices) / (element_size * element_size)).max(1.0))
-            .sum::<f64>()
-            * sides as f64;
-        if estimate > MAX_ELEMENTS as f64 {
-            return Err(MeshError::TooManyElements {
-                size: element_size,
-                count: estimate as usize,
-            });
-        }
-        let patch_area = patch_size * patch_size;
-        let mut units = Vec::new();
-        let mut small: Vec<u32> = Vec::new();
-        let mut small_outline: HashMap<u32, (Vec<DVec3>, usize)> = HashMap::new();
-        let mut surface_count = 0;
-        for members in topo.planar_members() {
-            let f0 = members[0] as usize;
-            if topo.normal[f0] == DVec3::ZERO {
-                continue;
-            }
-            if members.len() > 1
-                && let Some(poly) = topo.convex_outline(scene, &members)
-            {
-                surface_count += 1;
-                if polygon::area(&poly) >= 0.5 * patch_area {
-                    units.push(Unit::Polygon { poly, face: f0 });
-                } else {
-                    // A small surface (the two triangles of a sphere's quad): its faces
-                    // are clustered like small faces, and meshed as the outline when they
-                    // land in one cluster together.
-                    small_outline.insert(topo.planar[f0], (poly, members.len()));
-                    small.extend_from_slice(&members);
-                }
-                continue;
-            }
-            for &f in &members {
-                if topo.area[f as usize] >= 0.5 * patch_area {
-                    units.push(Unit::Polygon {
-                        poly: scene.faces[f as usize].vertices.clone(),
-                        face: f as usize,
-                    });
-                } else {
-                    small.push(f);
-                }
-            }
-        }
-        // Large faces cut along the outlines of faces facing them closer than a patch
-        // (objects resting on or hovering over a floor), so no patch straddles a contact.
-        let pieces: Vec<footprint::Piece> = units
-            .drain(..)
-            .filter_map(|u| match u {
-                Unit::Polygon { poly, face } => Some(footprint::Piece { poly, face }),
-                Unit::Cluster { .. } => None,
-            })
-            .collect();
-        let pieces = footprint::split(pieces, patch_size);
-        let pieces = if discontinuity {
-            super::discontinuity::split(pieces, scene, patch_area)
-        } else {
-            pieces
+        let units = Units::of(scene, topo, patch_size, discontinuity);
+        let mut parts = Parts {
+            scene,
+            topo,
+            face_occluder: &units.face_occluder,
+            element_size,
+            patch_size,
+            levels,
+            patches: Vec::new(),
+            base_patch: Vec::new(),
+            next_base: 0,
+            elements: Vec::new(),
+            element_group: Vec::new(),
         };
-        units.extend(pieces.into_iter().map(|p| Unit::Polygon {
-            poly: p.poly,
-            face: p.face,
-        }));
-        let clusters = topo.clusters(&small, patch_area, 0.75 * patch_size);
-        let mut face_occluder = topo.planar.clone();
-        let mut next_occluder = topo.planar_count as u32;
-        let mut cluster_count = 0;
-        for faces in clusters {
-            if faces.len() > 1 {
-                cluster_count += 1;
-                let planar = topo.planar[faces[0] as usize];
-                if faces.iter().any(|&f| topo.planar[f as usize] != planar) {
-                    for &f in &faces {
-                        face_occluder[f as usize] = next_occluder;
-                    }
-                    next_occluder += 1;
-                }
-            }
-            units.push(Unit::Cluster {
-                parts: cluster_parts(scene, topo, &small_outline, &faces),
-            });
-        }
-
-        let mut patches = Vec::new();
-        let mut base_patch: Vec<u32> = Vec::new();
-        // Index of the next patch of the unrefined mesh.
-        let mut next_base = 0usize;
-        let mut elements: Vec<Element> = Vec::new();
-        let mut element_group: Vec<u32> = Vec::new();
-        for unit in &units {
+        let sides = if scene.two_sided { 2 } else { 1 };
+        for unit in &units.units {
             for side in 0..sides {
-                let back = side == 1;
-                let group = |face: usize| topo.display[face] * 2 + u32::from(back);
                 match unit {
-                    Unit::Polygon { poly, face } => {
-                        let mut poly = poly.clone();
-                        if back {
-                            poly.reverse();
-                        }
-                        let Some(normal) = polygon::normal(&poly) else {
-                            continue;
-                        };
-                        let mut patch_polys: Vec<Vec<DVec3>> = Vec::new();
-                        subdivide(&poly, patch_size, &mut |corners: &[DVec3]| {
-                            if polygon::area(corners) > 0.0 {
-                                patch_polys.push(corners.to_vec());
-                            }
-                        });
-                        for base in patch_polys {
-                            // A base patch makes elements (so counts as a patch of the
-                            // unrefined mesh) unless it is degenerate at the base size.
-                            let mut probe = Vec::new();
-                            let base_normal = polygon::normal(&base).unwrap_or(normal);
-                            push_elements(
-                                &base,
-                                base_normal,
-                                element_size,
-                                PatchId(0),
-                                *face,
-                                &mut probe,
-                            );
-                            if probe.is_empty() {
-                                continue;
-                            }
-                            let base_id = next_base;
-                            next_base += 1;
-                            let scale = scale_of(base_id);
-                            let mut pieces: Vec<Vec<DVec3>> = Vec::new();
-                            if scale > 1.0 {
-                                subdivide(&base, patch_size / scale, &mut |c: &[DVec3]| {
-                                    if polygon::area(c) > 0.0 {
-                                        pieces.push(c.to_vec());
-                                    }
-                                });
-                            } else {
-                                pieces.push(base);
-                            }
-                            for pp in pieces {
-                                let pid = PatchId(patches.len() as u32);
-                                let first = elements.len();
-                                let pn = polygon::normal(&pp).unwrap_or(normal);
-                                push_elements(
-                                    &pp,
-                                    pn,
-                                    element_size / scale,
-                                    pid,
-                                    *face,
-                                    &mut elements,
-                                );
-                                element_group.resize(elements.len(), group(*face));
-                                if elements.len() == first {
-                                    continue;
-                                }
-                                base_patch.push(base_id as u32);
-                                patches.push(planar_patch(
-                                    scene,
-                                    *face,
-                                    face_occluder[*face],
-                                    pp,
-                                    pn,
-                                    back,
-                                    &elements[first..],
-                                    first as u32,
-                                ));
-                            }
-                        }
-                    }
-                    Unit::Cluster { parts } => {
-                        let pid = PatchId(patches.len() as u32);
-                        let first = elements.len();
-                        let base_id = next_base;
-                        let scale = scale_of(base_id);
-                        for (poly, f) in parts {
-                            let mut poly = poly.clone();
-                            if back {
-                                poly.reverse();
-                            }
-                            let Some(n) = polygon::normal(&poly) else {
-                                continue;
-                            };
-                            push_elements(&poly, n, element_size / scale, pid, *f, &mut elements);
-                            element_group.resize(elements.len(), group(*f));
-                        }
-                        if elements.len() == first {
-                            continue;
-                        }
-                        next_base += 1;
-                        base_patch.push(base_id as u32);
-                        let f0 = parts[0].1;
-                        let patch = if parts.len() == 1 {
-                            let mut poly = parts[0].0.clone();
-                            if back {
-                                poly.reverse();
-                            }
-                            let n = polygon::normal(&poly).unwrap_or(DVec3::Z);
-                            planar_patch(
-                                scene,
-                                f0,
-                                face_occluder[f0],
-                                poly,
-                                n,
-                                back,
-                                &elements[first..],
-                                first as u32,
-                            )
-                        } else {
-                            cluster_patch(
-                                scene,
-                                f0,
-                                face_occluder[f0],
-                                back,
-                                &elements[first..],
-                                first as u32,
-                            )
-                        };
-                        patches.push(patch);
-                    }
+                    Unit::Polygon { poly, face } => parts.polygon(poly, *face, side == 1),
+                    Unit::Cluster { parts: polys } => parts.cluster(polys, side == 1),
                 }
             }
         }
+        let Parts {
+            patches,
+            base_patch,
+            elements,
+            element_group,
+            ..
+        } = parts;
         static NEXT_MESH_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
         let mut mesh = Mesh {
             id: NEXT_MESH_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
@@ -326,9 +118,9 @@ impl Mesh {
             triangle_element: Vec::new(),
             element_size,
             patch_size,
-            face_occluder,
-            surface_count,
-            cluster_count,
+            face_occluder: units.face_occluder,
+            surface_count: units.surface_count,
+            cluster_count: units.cluster_count,
             base_patch,
             t_vertices: Vec::new(),
             vertex_weight_start: Vec::new(),
@@ -337,6 +129,314 @@ impl Mesh {
         mesh.build_vertices(&element_group);
         mesh.build_vertex_weights();
         Ok(mesh)
+    }
+}
+
+/// Refuses sizes that are not positive and finite, and an element size that would make
+/// more than [`MAX_ELEMENTS`] elements (estimated before allocating: a face smaller than an
+/// element is one element).
+fn check_sizes(scene: &Scene, element_size: f64, patch_size: f64) -> Result<(), MeshError> {
+    if !(element_size.is_finite() && element_size > 0.0) {
+        return Err(MeshError::BadElementSize(element_size));
+    }
+    if !(patch_size.is_finite() && patch_size > 0.0) {
+        return Err(MeshError::BadPatchSize(patch_size));
+    }
+    let sides = if scene.two_sided { 2 } else { 1 };
+    let estimate: f64 = scene
+        .faces
+        .iter()
+        .map(|f| (2.0 * polygon::area(&f.vertices) / (element_size * element_size)).max(1.0))
+        .sum::<f64>()
+        * sides as f64;
+    if estimate > MAX_ELEMENTS as f64 {
+        return Err(MeshError::TooManyElements {
+            size: element_size,
+            count: estimate as usize,
+        });
+    }
+    Ok(())
+}
+
+/// The meshing units of a scene, in meshing order, and what grouping them found.
+struct Units {
+    units: Vec<Unit>,
+    /// Visibility group of each scene face ([`Mesh::face_occluder`]).
+    face_occluder: Vec<u32>,
+    surface_count: usize,
+    cluster_count: usize,
+}
+
+/// Faces (and small surfaces) smaller than half a patch, to be clustered.
+#[derive(Default)]
+struct Small {
+    faces: Vec<u32>,
+    /// Per planar surface, its convex outline and face count.
+    outline: HashMap<u32, (Vec<DVec3>, usize)>,
+}
+
+impl Units {
+    /// The planar units (large surfaces and faces, cut along contacts and, with
+    /// `discontinuity`, the lights' shadow outlines), then the clusters of small faces.
+    fn of(scene: &Scene, topo: &Topology, patch_size: f64, discontinuity: bool) -> Units {
+        let patch_area = patch_size * patch_size;
+        let (pieces, small, surface_count) = large_pieces(scene, topo, patch_area);
+        // Large faces cut along the outlines of faces facing them closer than a patch
+        // (objects resting on or hovering over a floor), so no patch straddles a contact.
+        let pieces = footprint::split(pieces, patch_size);
+        let pieces = if discontinuity {
+            super::discontinuity::split(pieces, scene, patch_area)
+        } else {
+            pieces
+        };
+        let mut units: Vec<Unit> = pieces
+            .into_iter()
+            .map(|p| Unit::Polygon {
+                poly: p.poly,
+                face: p.face,
+            })
+            .collect();
+        let clusters = topo.clusters(&small.faces, patch_area, 0.75 * patch_size);
+        let mut face_occluder = topo.planar.clone();
+        let mut next_occluder = topo.planar_count as u32;
+        let mut cluster_count = 0;
+        for faces in clusters {
+            if faces.len() > 1 {
+                cluster_count += 1;
+                let planar = topo.planar[faces[0] as usize];
+                // A cluster across planar surfaces occludes as one group of its own.
+                if faces.iter().any(|&f| topo.planar[f as usize] != planar) {
+                    for &f in &faces {
+                        face_occluder[f as usize] = next_occluder;
+                    }
+                    next_occluder += 1;
+                }
+            }
+            units.push(Unit::Cluster {
+                parts: cluster_parts(scene, topo, &small.outline, &faces),
+            });
+        }
+        Units {
+            units,
+            face_occluder,
+            surface_count,
+            cluster_count,
+        }
+    }
+}
+
+/// The polygons of at least half a patch (a planar surface's convex outline, or a face),
+/// the smaller faces and surfaces left to cluster, and the number of surfaces merged.
+fn large_pieces(
+    scene: &Scene,
+    topo: &Topology,
+    patch_area: f64,
+) -> (Vec<footprint::Piece>, Small, usize) {
+    let mut pieces = Vec::new();
+    let mut small = Small::default();
+    let mut surface_count = 0;
+    for members in topo.planar_members() {
+        let f0 = members[0] as usize;
+        if topo.normal[f0] == DVec3::ZERO {
+            continue;
+        }
+        if members.len() > 1
+            && let Some(poly) = topo.convex_outline(scene, &members)
+        {
+            surface_count += 1;
+            if polygon::area(&poly) >= 0.5 * patch_area {
+                pieces.push(footprint::Piece { poly, face: f0 });
+            } else {
+                // A small surface (the two triangles of a sphere's quad): its faces are
+                // clustered like small faces, and meshed as the outline when they land in
+                // one cluster together.
+                small.outline.insert(topo.planar[f0], (poly, members.len()));
+                small.faces.extend_from_slice(&members);
+            }
+            continue;
+        }
+        for &f in &members {
+            if topo.area[f as usize] >= 0.5 * patch_area {
+                pieces.push(footprint::Piece {
+                    poly: scene.faces[f as usize].vertices.clone(),
+                    face: f as usize,
+                });
+            } else {
+                small.faces.push(f);
+            }
+        }
+    }
+    (pieces, small, surface_count)
+}
+
+/// The patches and elements made so far, and what making more needs.
+struct Parts<'a> {
+    scene: &'a Scene,
+    topo: &'a Topology,
+    face_occluder: &'a [u32],
+    element_size: f64,
+    patch_size: f64,
+    /// Refinement level per base patch ([`Mesh::build_refined`]).
+    levels: &'a [u8],
+    patches: Vec<Patch>,
+    base_patch: Vec<u32>,
+    /// Index of the next patch of the unrefined mesh.
+    next_base: usize,
+    elements: Vec<Element>,
+    /// Display group of each element (its face's display surface and side).
+    element_group: Vec<u32>,
+}
+
+impl Parts<'_> {
+    /// How many times smaller than the base sizes base patch `base` is meshed.
+    fn scale_of(&self, base: usize) -> f64 {
+        f64::from(1u32 << self.levels.get(base).copied().unwrap_or(0).min(8))
+    }
+
+    fn group(&self, face: usize, back: bool) -> u32 {
+        self.topo.display[face] * 2 + u32::from(back)
+    }
+
+    /// One side of a planar unit: cut into base patches of the patch size, each refined to
+    /// its level.
+    fn polygon(&mut self, poly: &[DVec3], face: usize, back: bool) {
+        let mut poly = poly.to_vec();
+        if back {
+            poly.reverse();
+        }
+        let Some(normal) = polygon::normal(&poly) else {
+            return;
+        };
+        let mut patch_polys: Vec<Vec<DVec3>> = Vec::new();
+        subdivide(&poly, self.patch_size, &mut |corners: &[DVec3]| {
+            if polygon::area(corners) > 0.0 {
+                patch_polys.push(corners.to_vec());
+            }
+        });
+        for base in patch_polys {
+            // A base patch makes elements (so counts as a patch of the unrefined mesh)
+            // unless it is degenerate at the base size.
+            let mut probe = Vec::new();
+            let base_normal = polygon::normal(&base).unwrap_or(normal);
+            push_elements(
+                &base,
+                base_normal,
+                self.element_size,
+                PatchId(0),
+                face,
+                &mut probe,
+            );
+            if probe.is_empty() {
+                continue;
+            }
+            let base_id = self.next_base;
+            self.next_base += 1;
+            let scale = self.scale_of(base_id);
+            let mut pieces: Vec<Vec<DVec3>> = Vec::new();
+            if scale > 1.0 {
+                subdivide(&base, self.patch_size / scale, &mut |c: &[DVec3]| {
+                    if polygon::area(c) > 0.0 {
+                        pieces.push(c.to_vec());
+                    }
+                });
+            } else {
+                pieces.push(base);
+            }
+            for pp in pieces {
+                self.planar_piece(pp, normal, face, back, base_id, scale);
+            }
+        }
+    }
+
+    /// One patch of a planar unit, part of base patch `base_id`, with elements `scale`
+    /// times smaller than the base size (none if it makes no element).
+    fn planar_piece(
+        &mut self,
+        pp: Vec<DVec3>,
+        normal: DVec3,
+        face: usize,
+        back: bool,
+        base_id: usize,
+        scale: f64,
+    ) {
+        let pid = PatchId(self.patches.len() as u32);
+        let first = self.elements.len();
+        let pn = polygon::normal(&pp).unwrap_or(normal);
+        push_elements(
+            &pp,
+            pn,
+            self.element_size / scale,
+            pid,
+            face,
+            &mut self.elements,
+        );
+        self.element_group
+            .resize(self.elements.len(), self.group(face, back));
+        if self.elements.len() == first {
+            return;
+        }
+        self.base_patch.push(base_id as u32);
+        self.patches.push(planar_patch(
+            self.scene,
+            face,
+            self.face_occluder[face],
+            pp,
+            pn,
+            back,
+            &self.elements[first..],
+            first as u32,
+        ));
+    }
+
+    /// One side of a cluster of small faces: one patch (one base patch), its elements at
+    /// the patch's level.
+    fn cluster(&mut self, parts: &[(Vec<DVec3>, usize)], back: bool) {
+        let pid = PatchId(self.patches.len() as u32);
+        let first = self.elements.len();
+        let base_id = self.next_base;
+        let scale = self.scale_of(base_id);
+        for (poly, f) in parts {
+            let mut poly = poly.clone();
+            if back {
+                poly.reverse();
+            }
+            let Some(n) = polygon::normal(&poly) else {
+                continue;
+            };
+            let size = self.element_size / scale;
+            push_elements(&poly, n, size, pid, *f, &mut self.elements);
+            self.element_group
+                .resize(self.elements.len(), self.group(*f, back));
+        }
+        if self.elements.len() == first {
+            return;
+        }
+        self.next_base += 1;
+        self.base_patch.push(base_id as u32);
+        let f0 = parts[0].1;
+        let elements = &self.elements[first..];
+        let patch = if parts.len() == 1 {
+            let mut poly = parts[0].0.clone();
+            if back {
+                poly.reverse();
+            }
+            let n = polygon::normal(&poly).unwrap_or(DVec3::Z);
+            let occluder = self.face_occluder[f0];
+            planar_patch(
+                self.scene,
+                f0,
+                occluder,
+                poly,
+                n,
+                back,
+                elements,
+                first as u32,
+            )
+        } else {
+            let occluder = self.face_occluder[f0];
+            cluster_patch(self.scene, f0, occluder, back, elements, first as u32)
+        };
+        self.patches.push(patch);
     }
 }
 

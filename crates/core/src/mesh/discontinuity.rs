@@ -436,7 +436,7 @@ usemtl light\nf 9 10 11 12\n";
 
 #[cfg(test)]
 mod cornell_tests {
-    use crate::mesh::Mesh;
+    use crate::mesh::{Mesh, MeshSpec};
     use crate::scene::{LoadOptions, Scene};
 
     /// On the Cornell box the shadow outlines add pieces (more patches at the same sizes)
@@ -447,8 +447,15 @@ mod cornell_tests {
     #[test]
     fn the_cornell_mesh_gains_pieces_and_keeps_its_area() {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
-        let plain = Mesh::build_with(&scene, 40.0, 160.0).expect("mesh");
-        let cut = Mesh::build_with_discontinuities(&scene, 40.0, 160.0).expect("mesh");
+        let plain = Mesh::build(&scene, &MeshSpec::sized(40.0, 160.0)).expect("mesh");
+        let cut = Mesh::build(
+            &scene,
+            &MeshSpec {
+                discontinuity: true,
+                ..MeshSpec::sized(40.0, 160.0)
+            },
+        )
+        .expect("mesh");
         let area = |m: &Mesh| m.elements.iter().map(|e| e.area).sum::<f64>();
         let (a, b) = (area(&plain), area(&cut));
         assert!((a - b).abs() < 1e-3 * 40.0 * 40.0, "{a} vs {b}");

@@ -183,41 +183,10 @@ impl Mesh {
         self.find_t_vertices(element_group, &vertex_group, eps);
     }
 
+    /// The vertices lying inside an edge of an element of their display group (within
+    /// `eps`), found through a grid of cells of [`Mesh::t_vertex_cell`].
     fn find_t_vertices(&mut self, element_group: &[u32], vertex_group: &[u32], eps: f64) {
-        // Cells of a typical element's size (the median area's side), not of the nominal
-        // element size: faces smaller than an element stay whole, and a model of many tiny
-        // faces would otherwise put thousands of vertices in one cell (1 M triangles: 240 s).
-        let mut areas: Vec<f64> = self.elements.iter().map(|e| e.area).collect();
-        let typical = if areas.is_empty() {
-            self.element_size
-        } else {
-            let mid = areas.len() / 2;
-            let (_, median, _) = areas.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
-            median.sqrt()
-        };
-        // Coarser where most edges are far longer than the typical element (a few tiny
-        // faces beside large ones): the walks along the edges then visit at most about 16
-        // cells an edge in all, instead of millions each.
-        let (mut edge_length, mut edges) = (0.0, 0usize);
-        for e in &self.elements {
-            let n = e.corner_count as usize;
-            for k in 0..n {
-                edge_length += (e.corners[(k + 1) % n] - e.corners[k]).length();
-                edges += 1;
-            }
-        }
-        let mut cell = typical.min(self.element_size).max(eps);
-        while edge_length / (0.5 * cell) > 16.0 * edges as f64 && cell.is_finite() {
-            cell *= 2.0;
-        }
-        let key = |p: DVec3| {
-            let q = (p / cell).floor();
-            (q.x as i64, q.y as i64, q.z as i64)
-        };
-        let mut grid: HashMap<(i64, i64, i64), Vec<u32>> = HashMap::new();
-        for (v, p) in self.vertices.iter().enumerate() {
-            grid.entry(key(*p)).or_default().push(v as u32);
-        }
+        let grid = VertexGrid::new(&self.vertices, self.t_vertex_cell(eps));
         let mut found: HashMap<u32, TVertex> = HashMap::new();
         for (e, &group) in self.elements.iter().zip(element_group) {
             let n = e.corner_count as usize;
@@ -229,53 +198,7 @@ impl Mesh {
                 if len2 <= 0.0 {
                     continue;
                 }
-                let (lo, hi) = (
-                    key(pa.min(pb) - DVec3::splat(eps)),
-                    key(pa.max(pb) + DVec3::splat(eps)),
-                );
-                // The vertices that can lie on the edge: those in the cells of its bounding
-                // box, or for a long edge (a large element beside small ones) in the cells
-                // along it, or every vertex where that walk would visit more cells than
-                // there are vertices (an edge millions of cells long: a fuzzed model at
-                // 1e32 scale walked 10^7 steps an edge and sorted 27 cells a step).
-                let span = |a: i64, b: i64| b.abs_diff(a) as f64 + 1.0;
-                let box_cells = span(lo.0, hi.0) * span(lo.1, hi.1) * span(lo.2, hi.2);
-                let walk = (len2.sqrt() / (0.5 * cell)).ceil();
-                let mut candidates: Vec<u32> = Vec::new();
-                if box_cells <= 64.0 {
-                    for x in lo.0..=hi.0 {
-                        for y in lo.1..=hi.1 {
-                            for z in lo.2..=hi.2 {
-                                if let Some(list) = grid.get(&(x, y, z)) {
-                                    candidates.extend_from_slice(list);
-                                }
-                            }
-                        }
-                    }
-                } else if 27.0 * walk > self.vertices.len() as f64 {
-                    candidates.extend(0..self.vertices.len() as u32);
-                } else {
-                    let steps = walk as usize;
-                    let mut cells: Vec<(i64, i64, i64)> = Vec::new();
-                    for i in 0..=steps {
-                        let c = key(pa + d * (i as f64 / steps.max(1) as f64));
-                        for dx in -1..=1 {
-                            for dy in -1..=1 {
-                                for dz in -1..=1 {
-                                    cells.push((c.0 + dx, c.1 + dy, c.2 + dz));
-                                }
-                            }
-                        }
-                    }
-                    cells.sort_unstable();
-                    cells.dedup();
-                    for cell_key in cells {
-                        if let Some(list) = grid.get(&cell_key) {
-                            candidates.extend_from_slice(list);
-                        }
-                    }
-                }
-                for v in candidates {
+                for v in grid.near_edge(pa, pb, eps, self.vertices.len()) {
                     if v == a || v == b || vertex_group[v as usize] != group {
                         continue;
                     }
@@ -295,8 +218,113 @@ impl Mesh {
         self.t_vertices = list;
     }
 
+    /// The cell size of the T-vertex search grid: a typical element's size (the median
+    /// area's side), not the nominal element size: faces smaller than an element stay
+    /// whole, and a model of many tiny faces would otherwise put thousands of vertices in
+    /// one cell (1 M triangles: 240 s). Coarser where most edges are far longer than the
+    /// typical element (a few tiny faces beside large ones): the walks along the edges then
+    /// visit at most about 16 cells an edge in all, instead of millions each.
+    fn t_vertex_cell(&self, eps: f64) -> f64 {
+        let mut areas: Vec<f64> = self.elements.iter().map(|e| e.area).collect();
+        let typical = if areas.is_empty() {
+            self.element_size
+        } else {
+            let mid = areas.len() / 2;
+            let (_, median, _) = areas.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+            median.sqrt()
+        };
+        let (mut edge_length, mut edges) = (0.0, 0usize);
+        for e in &self.elements {
+            let n = e.corner_count as usize;
+            for k in 0..n {
+                edge_length += (e.corners[(k + 1) % n] - e.corners[k]).length();
+                edges += 1;
+            }
+        }
+        let mut cell = typical.min(self.element_size).max(eps);
+        while edge_length / (0.5 * cell) > 16.0 * edges as f64 && cell.is_finite() {
+            cell *= 2.0;
+        }
+        cell
+    }
+
     /// Number of T-vertices found (for tests and statistics).
     pub fn t_vertex_count(&self) -> usize {
         self.t_vertices.len()
+    }
+}
+
+/// The display vertices bucketed by cubic cells.
+struct VertexGrid {
+    cell: f64,
+    cells: HashMap<(i64, i64, i64), Vec<u32>>,
+}
+
+impl VertexGrid {
+    fn new(vertices: &[DVec3], cell: f64) -> Self {
+        let mut grid = Self {
+            cell,
+            cells: HashMap::new(),
+        };
+        for (v, p) in vertices.iter().enumerate() {
+            grid.cells.entry(grid.key(*p)).or_default().push(v as u32);
+        }
+        grid
+    }
+
+    fn key(&self, p: DVec3) -> (i64, i64, i64) {
+        let q = (p / self.cell).floor();
+        (q.x as i64, q.y as i64, q.z as i64)
+    }
+
+    /// The vertices that can lie on the edge `pa`–`pb` (of `vertex_count` in all): those in
+    /// the cells of its bounding box, or for a long edge (a large element beside small
+    /// ones) in the cells along it, or every vertex where that walk would visit more cells
+    /// than there are vertices (an edge millions of cells long: a fuzzed model at 1e32
+    /// scale walked 10^7 steps an edge and sorted 27 cells a step).
+    fn near_edge(&self, pa: DVec3, pb: DVec3, eps: f64, vertex_count: usize) -> Vec<u32> {
+        let (lo, hi) = (
+            self.key(pa.min(pb) - DVec3::splat(eps)),
+            self.key(pa.max(pb) + DVec3::splat(eps)),
+        );
+        let span = |a: i64, b: i64| b.abs_diff(a) as f64 + 1.0;
+        let box_cells = span(lo.0, hi.0) * span(lo.1, hi.1) * span(lo.2, hi.2);
+        let d = pb - pa;
+        let walk = (d.length_squared().sqrt() / (0.5 * self.cell)).ceil();
+        let mut candidates: Vec<u32> = Vec::new();
+        if box_cells <= 64.0 {
+            for x in lo.0..=hi.0 {
+                for y in lo.1..=hi.1 {
+                    for z in lo.2..=hi.2 {
+                        if let Some(list) = self.cells.get(&(x, y, z)) {
+                            candidates.extend_from_slice(list);
+                        }
+                    }
+                }
+            }
+        } else if 27.0 * walk > vertex_count as f64 {
+            candidates.extend(0..vertex_count as u32);
+        } else {
+            let steps = walk as usize;
+            let mut cells: Vec<(i64, i64, i64)> = Vec::new();
+            for i in 0..=steps {
+                let c = self.key(pa + d * (i as f64 / steps.max(1) as f64));
+                for dx in -1..=1 {
+                    for dy in -1..=1 {
+                        for dz in -1..=1 {
+                            cells.push((c.0 + dx, c.1 + dy, c.2 + dz));
+                        }
+                    }
+                }
+            }
+            cells.sort_unstable();
+            cells.dedup();
+            for cell_key in cells {
+                if let Some(list) = self.cells.get(&cell_key) {
+                    candidates.extend_from_slice(list);
+                }
+            }
+        }
+        candidates
     }
 }

@@ -24,7 +24,10 @@ mod cluster;
 pub mod discontinuity;
 mod footprint;
 mod interpolate;
+mod spec;
 pub mod surfaces;
+
+pub use spec::MeshSpec;
 
 use std::ops::Range;
 
@@ -123,7 +126,7 @@ fn count_at(scene: &Scene, areas: &[f64], s: f64) -> f64 {
             .sum::<f64>()
 }
 
-/// About how many elements [`Mesh::build_with`] makes of `scene` at element size `size`,
+/// About how many elements [`Mesh::build`] makes of `scene` at element size `size`,
 /// known before meshing so that a mesh too large for the memory budget is refused at once:
 /// per face `max(1, k A / s² + P / 2s)`, the area term of [`element_size_for_budget`] plus
 /// the part-elements along the perimeter `P` (a w × h quad cut into ⌈w/s⌉ × ⌈h/s⌉ squares
@@ -344,38 +347,22 @@ pub enum MeshError {
 }
 
 impl Mesh {
-    /// Meshes with patches of about [`PATCH_ELEMENTS`] elements across.
-    pub fn build(scene: &Scene, element_size: f64) -> Result<Mesh, MeshError> {
-        Mesh::build_with(scene, element_size, default_patch_size(element_size))
-    }
-
-    /// The default mesh: element size from `budget` ([`element_size_for_budget`]), or with
-    /// no budget given [`default_element_size`]; patches `patch_size` or
-    /// [`default_patch_size`]. The size is an estimate from face areas (merged outlines,
-    /// slivers and small faces change the real count), so a mesh more than 5 % over the
-    /// budget is rebuilt coarser, at most twice.
-    pub fn build_for_budget(
+    /// The mesh of `scene` at the element size of `spec` when it has one; else at the size
+    /// from its element budget ([`element_size_for_budget`]), or with no budget given
+    /// [`default_element_size`]. The size from a budget is an estimate from face areas
+    /// (merged outlines, slivers and small faces change the real count), so a mesh more
+    /// than 5 % over the budget is rebuilt coarser, at most twice.
+    fn build_for_budget(
         scene: &Scene,
-        budget: Option<usize>,
-        patch_size: Option<f64>,
+        topo: &surfaces::Topology,
+        spec: &MeshSpec,
     ) -> Result<Mesh, MeshError> {
-        Mesh::build_for_budget_with(scene, budget, patch_size, false)
-    }
-
-    /// [`Mesh::build_for_budget`], with the lights' shadow outlines as element edges when
-    /// `discontinuity` ([`discontinuity`]).
-    pub fn build_for_budget_with(
-        scene: &Scene,
-        budget: Option<usize>,
-        patch_size: Option<f64>,
-        discontinuity: bool,
-    ) -> Result<Mesh, MeshError> {
+        let budget = spec.max_elements;
         let target = budget.unwrap_or(ELEMENT_BUDGET).max(1) as f64;
         let mut size = match budget {
             Some(b) => element_size_for_budget(scene, b),
             None => default_element_size(scene),
         };
-        let topo = surfaces::Topology::new(scene);
         let mut tries = 0;
         // A face smaller than an element is one element: with more faces than the budget
         // the count cannot reach it, and coarser elements only coarsen the large faces.
@@ -386,16 +373,24 @@ impl Mesh {
             // at 3.4× it, 5 s a try), so one meshing at the size that cuts them into about
             // 5 % more elements than the surfaces.
             size = size.max(element_size_for_excess(scene, 0.05 * min_count));
-            let patch = patch_size
-                .unwrap_or_else(|| default_patch_size(size))
-                .max(size);
-            return Mesh::build_from(scene, &topo, size, patch, &[], discontinuity);
+            return Mesh::build_from(
+                scene,
+                topo,
+                size,
+                spec.patch_for(size),
+                &[],
+                spec.discontinuity,
+            );
         }
         loop {
-            let patch = patch_size
-                .unwrap_or_else(|| default_patch_size(size))
-                .max(size);
-            let mesh = Mesh::build_from(scene, &topo, size, patch, &[], discontinuity)?;
+            let mesh = Mesh::build_from(
+                scene,
+                topo,
+                size,
+                spec.patch_for(size),
+                &[],
+                spec.discontinuity,
+            )?;
             let count = mesh.elements.len() as f64;
             tries += 1;
             if count <= 1.05 * target || count <= 1.05 * min_count || tries == 3 {

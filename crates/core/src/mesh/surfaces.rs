@@ -92,78 +92,81 @@ impl UnionFind {
     }
 }
 
-impl Topology {
-    pub fn new(scene: &Scene) -> Topology {
-        let faces = &scene.faces;
-        let n = faces.len();
-        let diag = scene.bounds().diagonal().max(1e-300);
-        // Welding: positions within ~1e-7 of the scene's size are one vertex.
-        let weld = 1e-7 * diag;
-        let mut ids: HashMap<(i64, i64, i64), u32> = HashMap::new();
-        let mut welded = Vec::with_capacity(n);
-        for f in faces {
-            let w: Vec<u32> = f
-                .vertices
-                .iter()
-                .map(|p| {
-                    let q = (*p / weld).round();
-                    let next = ids.len() as u32;
-                    *ids.entry((q.x as i64, q.y as i64, q.z as i64))
-                        .or_insert(next)
-                })
-                .collect();
-            welded.push(w);
-        }
-        let normal: Vec<DVec3> = faces
+/// Welded vertex ids per face: positions within ~1e-7 of the scene's size (`diag`) are one
+/// vertex.
+fn weld(scene: &Scene, diag: f64) -> Vec<Vec<u32>> {
+    let weld = 1e-7 * diag;
+    let mut ids: HashMap<(i64, i64, i64), u32> = HashMap::new();
+    let mut welded = Vec::with_capacity(scene.faces.len());
+    for f in &scene.faces {
+        let w: Vec<u32> = f
+            .vertices
             .iter()
-            .map(|f| polygon::normal(&f.vertices).unwrap_or(DVec3::ZERO))
+            .map(|p| {
+                let q = (*p / weld).round();
+                let next = ids.len() as u32;
+                *ids.entry((q.x as i64, q.y as i64, q.z as i64))
+                    .or_insert(next)
+            })
             .collect();
-        let area: Vec<f64> = faces.iter().map(|f| polygon::area(&f.vertices)).collect();
-        let centroid: Vec<DVec3> = faces
-            .iter()
-            .map(|f| polygon::centroid(&f.vertices))
-            .collect();
-        // Undirected edges → the faces using them.
-        let mut edges: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
-        for (fi, w) in welded.iter().enumerate() {
-            for k in 0..w.len() {
-                let (a, b) = (w[k], w[(k + 1) % w.len()]);
-                if a != b {
-                    edges
-                        .entry((a.min(b), a.max(b)))
-                        .or_default()
-                        .push(fi as u32);
-                }
-            }
-        }
-        let mut pairs: Vec<(u32, u32)> = Vec::new();
-        for list in edges.values() {
-            // A non-manifold edge (more than two faces) joins nothing: ambiguous.
-            if list.len() == 2 && list[0] != list[1] {
-                pairs.push((list[0], list[1]));
-                pairs.push((list[1], list[0]));
-            }
-        }
-        pairs.sort_unstable();
-        pairs.dedup();
-        let mut adjacency_start = vec![0u32; n + 1];
-        for &(a, _) in &pairs {
-            adjacency_start[a as usize + 1] += 1;
-        }
-        for i in 0..n {
-            adjacency_start[i + 1] += adjacency_start[i];
-        }
-        let adjacency: Vec<u32> = pairs.iter().map(|&(_, b)| b).collect();
+        welded.push(w);
+    }
+    welded
+}
 
+/// The pairs of faces sharing a welded edge, both ways, sorted.
+fn edge_pairs(welded: &[Vec<u32>]) -> Vec<(u32, u32)> {
+    // Undirected edges → the faces using them.
+    let mut edges: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
+    for (fi, w) in welded.iter().enumerate() {
+        for k in 0..w.len() {
+            let (a, b) = (w[k], w[(k + 1) % w.len()]);
+            if a != b {
+                edges
+                    .entry((a.min(b), a.max(b)))
+                    .or_default()
+                    .push(fi as u32);
+            }
+        }
+    }
+    let mut pairs: Vec<(u32, u32)> = Vec::new();
+    for list in edges.values() {
+        // A non-manifold edge (more than two faces) joins nothing: ambiguous.
+        if list.len() == 2 && list[0] != list[1] {
+            pairs.push((list[0], list[1]));
+            pairs.push((list[1], list[0]));
+        }
+    }
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
+}
+
+/// The faces of a scene with their plane data, for grouping them.
+struct Faces<'a> {
+    scene: &'a Scene,
+    normal: &'a [DVec3],
+    area: &'a [f64],
+    centroid: &'a [DVec3],
+    /// The scene's diagonal (tolerances are relative to it).
+    diag: f64,
+}
+
+impl Faces<'_> {
+    /// Edge-adjacent faces joined into planar surfaces (coplanar, same material) and into
+    /// display groups (same material, meeting at less than [`SMOOTH_ANGLE_DEG`]).
+    fn join_adjacent(&self, pairs: &[(u32, u32)]) -> (UnionFind, UnionFind) {
+        let (faces, normal, centroid) = (&self.scene.faces, self.normal, self.centroid);
+        let n = faces.len();
         let same_plane = |a: usize, b: usize| {
             faces[a].material == faces[b].material
                 && normal[a].dot(normal[b]) > (COPLANAR_ANGLE).cos()
-                && (normal[a].dot(centroid[b] - centroid[a])).abs() < 1e-6 * diag
+                && (normal[a].dot(centroid[b] - centroid[a])).abs() < 1e-6 * self.diag
         };
         let mut planar_uf = UnionFind::new(n);
         let mut display_uf = UnionFind::new(n);
         let cos_smooth = SMOOTH_ANGLE_DEG.to_radians().cos();
-        for &(a, b) in &pairs {
+        for &(a, b) in pairs {
             let (a, b) = (a as usize, b as usize);
             if a > b {
                 continue;
@@ -175,15 +178,21 @@ impl Topology {
                 display_uf.union(a as u32, b as u32);
             }
         }
-        // Coplanar faces of one material share display vertices even when they only meet
-        // at T-junctions (no shared welded edge): grouped by a quantised plane.
+        (planar_uf, display_uf)
+    }
+
+    /// The faces of each quantised plane and material. Coplanar faces of one material
+    /// share display vertices even when they only meet at T-junctions (no shared welded
+    /// edge), so each plane's faces are joined in `display_uf`.
+    fn planes(&self, display_uf: &mut UnionFind) -> HashMap<(u32, [i64; 4]), Vec<u32>> {
+        let (normal, centroid) = (self.normal, self.centroid);
         let mut planes: HashMap<(u32, [i64; 4]), Vec<u32>> = HashMap::new();
-        for (fi, f) in faces.iter().enumerate() {
+        for (fi, f) in self.scene.faces.iter().enumerate() {
             if normal[fi] == DVec3::ZERO {
                 continue;
             }
             let nq = (normal[fi] * 1e4).round();
-            let d = (normal[fi].dot(centroid[fi]) / (1e-5 * diag)).round();
+            let d = (normal[fi].dot(centroid[fi]) / (1e-5 * self.diag)).round();
             let key = (
                 f.material.0,
                 [nq.x as i64, nq.y as i64, nq.z as i64, d as i64],
@@ -194,7 +203,19 @@ impl Topology {
             }
             members.push(fi as u32);
         }
-        let mut redundant = vec![false; n];
+        planes
+    }
+
+    /// [`Topology::redundant`]: duplicates (same welded vertices, material and
+    /// orientation), then, in each plane of `planes` of at most [`MAX_OVERLAP_GROUP`]
+    /// faces, faces lying inside a larger convex face.
+    fn redundant(
+        &self,
+        welded: &[Vec<u32>],
+        planes: &HashMap<(u32, [i64; 4]), Vec<u32>>,
+    ) -> Vec<bool> {
+        let (faces, normal, area) = (&self.scene.faces, self.normal, self.area);
+        let mut redundant = vec![false; faces.len()];
         let mut seen: HashMap<(u32, Vec<u32>), u32> = HashMap::new();
         for (fi, w) in welded.iter().enumerate() {
             // Same vertex set, material and orientation: a duplicate.
@@ -225,12 +246,50 @@ impl Topology {
                         && area[fo] > area[fi]
                         && polygon::is_convex(&faces[fo].vertices)
                         && faces[fi].vertices.iter().all(|p| {
-                            inside_convex(&faces[fo].vertices, normal[fo], *p, 1e-9 * diag)
+                            inside_convex(&faces[fo].vertices, normal[fo], *p, 1e-9 * self.diag)
                         })
                 });
                 redundant[fi] = inside_other;
             }
         }
+        redundant
+    }
+}
+
+impl Topology {
+    pub fn new(scene: &Scene) -> Topology {
+        let faces = &scene.faces;
+        let n = faces.len();
+        let diag = scene.bounds().diagonal().max(1e-300);
+        let welded = weld(scene, diag);
+        let normal: Vec<DVec3> = faces
+            .iter()
+            .map(|f| polygon::normal(&f.vertices).unwrap_or(DVec3::ZERO))
+            .collect();
+        let area: Vec<f64> = faces.iter().map(|f| polygon::area(&f.vertices)).collect();
+        let centroid: Vec<DVec3> = faces
+            .iter()
+            .map(|f| polygon::centroid(&f.vertices))
+            .collect();
+        let pairs = edge_pairs(&welded);
+        let mut adjacency_start = vec![0u32; n + 1];
+        for &(a, _) in &pairs {
+            adjacency_start[a as usize + 1] += 1;
+        }
+        for i in 0..n {
+            adjacency_start[i + 1] += adjacency_start[i];
+        }
+        let adjacency: Vec<u32> = pairs.iter().map(|&(_, b)| b).collect();
+        let faces_of = Faces {
+            scene,
+            normal: &normal,
+            area: &area,
+            centroid: &centroid,
+            diag,
+        };
+        let (mut planar_uf, mut display_uf) = faces_of.join_adjacent(&pairs);
+        let planes = faces_of.planes(&mut display_uf);
+        let redundant = faces_of.redundant(&welded, &planes);
         let (planar, planar_count) = planar_uf.labels();
         let (display, _) = display_uf.labels();
         Topology {

@@ -9,7 +9,7 @@ fn cornell() -> Scene {
 #[test]
 fn elements_tile_their_patches() {
     let scene = cornell();
-    let mesh = Mesh::build(&scene, 30.0).expect("mesh");
+    let mesh = Mesh::build(&scene, &MeshSpec::element(30.0)).expect("mesh");
     for p in &mesh.patches {
         let sum: f64 = mesh.elements[p.elements.start as usize..p.elements.end as usize]
             .iter()
@@ -80,7 +80,7 @@ fn a_sliver_quad_is_cut_by_its_area_and_a_strip_by_its_length() {
 #[test]
 fn vertices_are_not_shared_across_creases_or_materials() {
     let scene = cornell();
-    let mesh = Mesh::build(&scene, 50.0).expect("mesh");
+    let mesh = Mesh::build(&scene, &MeshSpec::element(50.0)).expect("mesh");
     // The floor-to-back-wall corner point appears once per surface.
     let corner = DVec3::new(0.0, 0.0, 559.2);
     let copies = mesh
@@ -101,14 +101,14 @@ fn t_vertices_are_interpolated_along_the_coarse_edge() {
     let mtl = "newmtl w\nKd 0.5 0.5 0.5\nnewmtl l\nKe 1 1 1\n";
     let scene = Scene::from_obj_str("t.obj", obj, &[("m.mtl", mtl)], &LoadOptions::default())
         .expect("scene");
-    let mut mesh = Mesh::build(&scene, 0.5).expect("mesh");
+    let mut mesh = Mesh::build(&scene, &MeshSpec::element(0.5)).expect("mesh");
     // Make the second patch finer by rebuilding it alone is awkward; instead check that
     // conforming patches have no T-vertices and a finer neighbour does.
     assert_eq!(mesh.t_vertex_count(), 0);
     let obj2 = obj.replace("v 2 0 0\nv 2 1 0", "v 1.5 0 0\nv 1.5 1 0");
     let scene2 = Scene::from_obj_str("t.obj", &obj2, &[("m.mtl", mtl)], &LoadOptions::default())
         .expect("scene");
-    mesh = Mesh::build(&scene2, 0.34).expect("mesh");
+    mesh = Mesh::build(&scene2, &MeshSpec::element(0.34)).expect("mesh");
     // The two quads (1 and 0.5 wide) share an edge and a plane: one surface, meshed as
     // one 1.5 × 1 grid, so no T-vertex, and a linear field is reproduced at every vertex
     // (a wrong weight, or a vertex shared across the light, breaks it).
@@ -132,7 +132,7 @@ fn t_vertices_are_interpolated_along_the_coarse_edge() {
     let obj3 = "mtllib m.mtl\nusemtl w\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 1 0.5 0\nv 1.1 0.5 0\nv 1.1 1 0\nf 1 2 5 3 4\nf 5 6 7 3\nusemtl l\nv 0 0 3\nv 0 1 3\nv 1 1 3\nf 8 9 10\n";
     let scene3 = Scene::from_obj_str("t.obj", obj3, &[("m.mtl", mtl)], &LoadOptions::default())
         .expect("scene");
-    let mesh3 = Mesh::build(&scene3, 0.2).expect("mesh");
+    let mesh3 = Mesh::build(&scene3, &MeshSpec::element(0.2)).expect("mesh");
     // A pentagon and a quad sharing the vertex (1, 0.5) and the edge to (1, 1): finely
     // meshed, a linear field is still reproduced at every vertex.
     assert!(linear_error(&mesh3) < 1e-9, "{}", linear_error(&mesh3));
@@ -141,7 +141,7 @@ fn t_vertices_are_interpolated_along_the_coarse_edge() {
     let obj4 = "mtllib m.mtl\nusemtl w\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 0.5 0\nv 1 0.5 0\nv 1.5 1 0\nv 1.5 0.5 0\nf 1 2 3 4\nf 2 5 6 9 7\nf 7 9 8 3\nusemtl l\nv 0 0 3\nv 0 1 3\nv 1 1 3\nf 10 11 12\n";
     let scene4 = Scene::from_obj_str("t.obj", obj4, &[("m.mtl", mtl)], &LoadOptions::default())
         .expect("scene");
-    let mesh4 = Mesh::build(&scene4, 10.0).expect("mesh");
+    let mesh4 = Mesh::build(&scene4, &MeshSpec::element(10.0)).expect("mesh");
     assert_eq!(mesh4.t_vertex_count(), 1);
     let values: Vec<Rgb> = mesh4
         .elements
@@ -185,7 +185,7 @@ fn vertex_values_reproduce_a_linear_field_up_to_the_boundary() {
     // (averages) and boundary vertices (least-squares extrapolation) must both be exact.
     // Averaging alone would be off by half an element's gradient at the boundary.
     let scene = cornell();
-    let mesh = Mesh::build(&scene, 30.0).expect("mesh");
+    let mesh = Mesh::build(&scene, &MeshSpec::element(30.0)).expect("mesh");
     let field = |p: DVec3| 1.0 + 0.002 * p.x + 0.001 * p.y + 0.0015 * p.z;
     let values: Vec<Rgb> = mesh
         .elements
@@ -206,11 +206,29 @@ fn vertex_values_reproduce_a_linear_field_up_to_the_boundary() {
 fn too_small_element_size_is_refused() {
     let scene = cornell();
     assert!(matches!(
-        Mesh::build(&scene, 0.01),
+        Mesh::build(&scene, &MeshSpec::element(0.01)),
         Err(MeshError::TooManyElements { .. })
     ));
     assert!(matches!(
-        Mesh::build(&scene, f64::NAN),
+        Mesh::build(&scene, &MeshSpec::element(f64::NAN)),
         Err(MeshError::BadElementSize(_))
     ));
+}
+
+/// A spec without an element size meshes for the element budget; refined, the levels
+/// apply to the patches of that budget mesh (the same sizes, the same base patches).
+#[test]
+fn a_budget_spec_refines_the_budget_mesh() {
+    let scene = cornell();
+    let spec = MeshSpec {
+        max_elements: Some(500),
+        ..MeshSpec::default()
+    };
+    let base = Mesh::build(&scene, &spec).expect("mesh");
+    let same = Mesh::build_refined(&scene, &spec, &[0, 0]).expect("mesh");
+    assert_eq!(same.elements.len(), base.elements.len());
+    let fine = Mesh::build_refined(&scene, &spec, &[1]).expect("mesh");
+    assert_eq!(fine.element_size, base.element_size);
+    assert_eq!(fine.base_count(), base.base_count());
+    assert!(fine.elements.len() > base.elements.len());
 }

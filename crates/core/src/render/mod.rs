@@ -175,6 +175,7 @@ pub(crate) fn pixel_samples(x: u32, y: u32, spp: u32, seed: u64, mut f: impl FnM
 /// use std::sync::atomic::AtomicBool;
 ///
 /// use glam::DVec3;
+/// use nusselt_core::mesh::MeshSpec;
 /// use nusselt_core::render::{self, Camera, RenderSettings, SolutionView};
 /// use nusselt_core::scene::{LoadOptions, Scene};
 /// use nusselt_core::solver::{ProgressiveSolver, SolverConfig};
@@ -187,11 +188,7 @@ pub(crate) fn pixel_samples(x: u32, y: u32, spp: u32, seed: u64, mut f: impl FnM
 /// let mtl = "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl light\nKd 0 0 0\nKe 10 10 10\n";
 /// let scene = Scene::from_obj_str("room.obj", obj, &[("room.mtl", mtl)], &LoadOptions::default())?;
 /// // Patches of 0.5: the light is one shooter.
-/// let config = SolverConfig {
-///     element_size: Some(0.0625),
-///     patch_size: Some(0.5),
-///     ..Default::default()
-/// };
+/// let config = SolverConfig { mesh: MeshSpec::sized(0.0625, 0.5), ..Default::default() };
 /// let mut solver = ProgressiveSolver::new(scene, config)?;
 /// solver.shoot(&AtomicBool::new(false)).expect("the light shoots");
 ///

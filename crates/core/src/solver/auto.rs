@@ -115,13 +115,17 @@ pub fn choose(problem: &Problem, run: RunShape) -> (SolverKind, String) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::MeshSpec;
     use crate::scene::{LoadOptions, Scene};
     use crate::solver::{SolverConfig, SolverOption};
 
     fn cornell(max_elements: usize) -> Problem {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         let config = SolverConfig {
-            max_elements: Some(max_elements),
+            mesh: MeshSpec {
+                max_elements: Some(max_elements),
+                ..Default::default()
+            },
             ..Default::default()
         };
         Problem::new(scene, config).expect("problem")

@@ -17,7 +17,7 @@ use std::sync::atomic::AtomicBool;
 
 use crate::formfactor::hemicube::ItemBufferRaster;
 use crate::formfactor::{FormFactorMethod, FormFactorParams};
-use crate::mesh::{Mesh, MeshError, PatchId};
+use crate::mesh::{Mesh, MeshError, MeshSpec, PatchId};
 use crate::scene::{MaterialId, Rgb};
 
 pub mod ambient;
@@ -48,16 +48,8 @@ pub use run::{StepRecord, StopCriteria, run_solver, solve_to};
 /// refuses an option the chosen solver does not read, [`SolverKind::refuse_unread`]).
 #[derive(Clone, Debug)]
 pub struct SolverConfig {
-    /// Element edge length; `None` = [`crate::mesh::default_element_size`].
-    pub element_size: Option<f64>,
-    /// Patch (shooter) edge length; `None` = [`crate::mesh::default_patch_size`].
-    pub patch_size: Option<f64>,
-    /// Element budget for the element size when `element_size` is `None`; `None` =
-    /// [`crate::mesh::default_element_size`].
-    pub max_elements: Option<usize>,
-    /// A priori discontinuity meshing: the lights' shadow outlines become element edges
-    /// (`--discontinuity`, [`crate::mesh::discontinuity`]).
-    pub discontinuity: bool,
+    /// The mesh: its sizes or element budget, and discontinuity meshing.
+    pub mesh: MeshSpec,
     /// How form-factor rows are computed.
     pub formfactor: FormFactorConfig,
     /// The run's memory budget in bytes ([`crate::budget`]): the textures and the mesh
@@ -74,10 +66,7 @@ pub struct SolverConfig {
 impl Default for SolverConfig {
     fn default() -> Self {
         Self {
-            element_size: None,
-            patch_size: None,
-            max_elements: None,
-            discontinuity: false,
+            mesh: MeshSpec::default(),
             formfactor: FormFactorConfig::default(),
             memory_bytes: crate::budget::FALLBACK_BYTES,
             shooting: ShootingOptions::default(),

@@ -7,7 +7,7 @@ use crate::formfactor::hemicube::ItemBufferRaster;
 use crate::formfactor::lights::{ExternalLight, GlassVisibility, NO_GLASS};
 use crate::formfactor::{FormFactorMethod, RowContext};
 use crate::geometry::Bvh;
-use crate::mesh::{self, Mesh, PatchId};
+use crate::mesh::{self, Mesh, MeshSpec, PatchId};
 use crate::scene::{Light, Material, Rgb, Scene};
 
 use super::{SolverConfig, SolverError, check_power};
@@ -38,14 +38,14 @@ impl PhaseClock {
 /// the budget that would fit.
 fn check_mesh_budget(scene: &Scene, config: &SolverConfig) -> Result<(), SolverError> {
     let sides = if scene.two_sided { 2 } else { 1 };
-    let (elements, size) = match config.element_size {
+    let (elements, size) = match config.mesh.element_size {
         Some(size) if size.is_finite() && size > 0.0 => {
             (mesh::estimated_elements(scene, size), size)
         }
         // A bad size is the mesher's error to report.
         Some(_) => return Ok(()),
         None => {
-            let target = config.max_elements.unwrap_or(mesh::ELEMENT_BUDGET);
+            let target = config.mesh.max_elements.unwrap_or(mesh::ELEMENT_BUDGET);
             let count = target.max(scene.faces.len() * sides) as f64;
             (count, mesh::element_size_for_budget(scene, target))
         }
@@ -56,7 +56,7 @@ fn check_mesh_budget(scene: &Scene, config: &SolverConfig) -> Result<(), SolverE
         return Ok(());
     }
     let needed = held.saturating_add(crate::budget::mesh_bytes(elements as usize));
-    let fitting = match config.element_size {
+    let fitting = match config.mesh.element_size {
         // Element count falls as the size squared: the size whose count fits, 10 % spare.
         Some(_) => format!(
             "--element-size {:.4} or larger",
@@ -115,25 +115,7 @@ impl Problem {
         }
         check_mesh_budget(&scene, &config)?;
         let start = std::time::Instant::now();
-        let mesh = match config.element_size {
-            Some(size) => {
-                let patch = config
-                    .patch_size
-                    .unwrap_or_else(|| mesh::default_patch_size(size))
-                    .max(size);
-                if config.discontinuity {
-                    Mesh::build_with_discontinuities(&scene, size, patch)?
-                } else {
-                    Mesh::build_with(&scene, size, patch)?
-                }
-            }
-            None => Mesh::build_for_budget_with(
-                &scene,
-                config.max_elements,
-                config.patch_size,
-                config.discontinuity,
-            )?,
-        };
+        let mesh = Mesh::build(&scene, &config.mesh)?;
         let meshing = start.elapsed().as_secs_f64();
         let mut problem = Self::with_mesh(scene, config, mesh)?;
         problem.setup_seconds.insert(0, ("mesh", meshing));
@@ -331,20 +313,15 @@ impl Problem {
 
     /// Rebuilds the mesh with a new element size (and the BVH's visibility groups).
     pub fn remesh(&mut self, element_size: f64) -> Result<(), SolverError> {
-        let patch = self
-            .config
-            .patch_size
-            .unwrap_or_else(|| mesh::default_patch_size(element_size))
-            .max(element_size);
-        let mesh = if self.config.discontinuity {
-            Mesh::build_with_discontinuities(&self.scene, element_size, patch)?
-        } else {
-            Mesh::build_with(&self.scene, element_size, patch)?
+        let spec = MeshSpec {
+            element_size: Some(element_size),
+            ..self.config.mesh
         };
+        let mesh = Mesh::build(&self.scene, &spec)?;
         check_power(&self.scene.materials, &mesh)?;
         self.bvh = mesh.blocker_bvh(&self.scene);
         self.mesh = mesh;
-        self.config.element_size = Some(element_size);
+        self.config.mesh = spec;
         self.external = ExternalLight::default();
         self.glass = std::sync::OnceLock::new();
         self.texture_elements();

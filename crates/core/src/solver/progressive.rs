@@ -61,12 +61,13 @@ const SHOOTER_TIE: f64 = 1e-9;
 /// ```
 /// use std::sync::atomic::AtomicBool;
 ///
+/// use nusselt_core::mesh::MeshSpec;
 /// use nusselt_core::scene::{LoadOptions, Scene};
 /// use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 ///
 /// let rho = 0.5;
 /// let scene = Scene::builtin("furnace", &LoadOptions { rho: Some(rho), ..Default::default() })?;
-/// let config = SolverConfig { element_size: Some(0.25), ..Default::default() };
+/// let config = SolverConfig { mesh: MeshSpec::element(0.25), ..Default::default() };
 /// let mut solver = ProgressiveSolver::new(scene, config)?;
 /// assert_eq!(solver.unshot_fraction(), 1.0); // Nothing shot yet.
 ///

@@ -1,7 +1,7 @@
 //! The solvers, one row each: name, aliases, what the row's solver reads beyond the common
 //! settings, and how it is checked and built. [`SolverKind`], its names, parsing, checks,
 //! construction and the refusal of settings a solver ignores all come from the one table
-//! in [`solver_table!`] at the end of this file: adding a solver is its own file and one
+//! in `solver_table!` at the end of this file: adding a solver is its own file and one
 //! row there (the compiler checks the rest: every `match` over [`SolverKind`] is generated
 //! from the table).
 

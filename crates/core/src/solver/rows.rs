@@ -142,6 +142,7 @@ impl RowCache {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::MeshSpec;
     use crate::scene::{LoadOptions, Scene};
     use crate::solver::SolverConfig;
 
@@ -153,7 +154,7 @@ mod tests {
         let mut problem = Problem::new(
             scene,
             SolverConfig {
-                element_size: Some(100.0),
+                mesh: MeshSpec::element(100.0),
                 ..SolverConfig::default()
             },
         )

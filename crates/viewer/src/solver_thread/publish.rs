@@ -115,8 +115,8 @@ impl Worker {
                 Some(a) => format!(
                     "{}; adaptive: pass {}, tolerance {}",
                     solver.report(),
-                    a.passes + 1,
-                    a.tolerance
+                    a.passes() + 1,
+                    a.tolerance()
                 ),
                 None => solver.report(),
             },

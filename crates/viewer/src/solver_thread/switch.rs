@@ -54,7 +54,7 @@ impl Worker {
         match problem.remesh(size) {
             Ok(()) => {
                 rows = None;
-                self.config.element_size = Some(size);
+                self.config.mesh.element_size = Some(size);
                 self.build(problem, rows);
                 self.new_geometry();
             }
@@ -109,7 +109,7 @@ impl Worker {
                 ));
                 if let Some(a) = self.adapting.as_mut() {
                     // Levels were per patch of the old mesh.
-                    a.levels.clear();
+                    a.restart_levels();
                 }
                 self.build(problem, rows);
                 self.new_geometry();

@@ -9,6 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TryRecvError, TrySendError};
 use std::time::{Duration, Instant};
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{AreaLight, LoadOptions, Material, MaterialId, Rgb, Scene};
 use nusselt_core::solver::{Problem, Solver, SolverConfig, SolverKind};
 
@@ -441,9 +442,9 @@ impl Worker {
         let mut file = nusselt_core::scene::SceneFile::describe(&problem.scene, camera, path);
         file.mesh = Some(MeshEntry {
             element_size: Some(problem.mesh.element_size),
-            patch_size: problem.config.patch_size,
-            max_elements: problem.config.max_elements,
-            discontinuity: problem.config.discontinuity,
+            patch_size: problem.config.mesh.patch_size,
+            max_elements: problem.config.mesh.max_elements,
+            discontinuity: problem.config.mesh.discontinuity,
         });
         file.solver = Some(SolverEntry {
             name: Some(self.kind.name().into()),
@@ -456,8 +457,11 @@ impl Worker {
     fn load(&mut self, scene: Scene) {
         // A new scene gets its own default element size, the other settings stay.
         let config = SolverConfig {
-            element_size: None,
-            patch_size: None,
+            mesh: MeshSpec {
+                element_size: None,
+                patch_size: None,
+                ..self.config.mesh
+            },
             ..self.config.clone()
         };
         self.install_lit(scene, config);
@@ -504,10 +508,12 @@ impl Worker {
             return;
         };
         let config = SolverConfig {
-            element_size: mesh.element_size,
-            patch_size: mesh.patch_size,
-            max_elements: mesh.max_elements,
-            discontinuity: mesh.discontinuity,
+            mesh: MeshSpec {
+                element_size: mesh.element_size,
+                patch_size: mesh.patch_size,
+                max_elements: mesh.max_elements,
+                discontinuity: mesh.discontinuity,
+            },
             ..self.config.clone()
         };
         self.install_lit(scene, config);

@@ -191,6 +191,7 @@ pub fn unfolded(f: usize, i: usize, j: usize, res: usize) -> (usize, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nusselt_core::mesh::MeshSpec;
     use nusselt_core::scene::{LoadOptions, Scene};
     use nusselt_core::solver::SolverConfig;
     use std::sync::atomic::AtomicBool;
@@ -198,8 +199,7 @@ mod tests {
     fn cornell() -> Problem {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         let config = SolverConfig {
-            element_size: Some(60.0),
-            patch_size: Some(120.0),
+            mesh: MeshSpec::sized(60.0, 120.0),
             ..Default::default()
         };
         Problem::new(scene, config).expect("problem")

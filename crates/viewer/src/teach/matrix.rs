@@ -186,6 +186,7 @@ impl MatrixWork {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nusselt_core::mesh::MeshSpec;
     use nusselt_core::scene::{LoadOptions, Scene};
     use nusselt_core::solver::SolverConfig;
 
@@ -198,8 +199,7 @@ mod tests {
     fn the_patch_matrix_is_the_solvers_rows_summed_by_patch() {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         let config = SolverConfig {
-            element_size: Some(100.0),
-            patch_size: Some(200.0),
+            mesh: MeshSpec::sized(100.0, 200.0),
             // Exact area-to-area rows: reciprocity is then exact up to visibility sampling.
             formfactor: nusselt_core::solver::FormFactorConfig {
                 method: nusselt_core::formfactor::FormFactorMethod::Exact,

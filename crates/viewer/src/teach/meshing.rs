@@ -16,6 +16,7 @@ use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{Camera, Rgb, Scene};
 use nusselt_core::solver::{Problem, Solver, SolverConfig, SolverKind, StopCriteria, run_solver};
 
@@ -185,9 +186,12 @@ fn compute(
     stage.store(1, Ordering::Relaxed);
     let start = Instant::now();
     let coarse = SolverConfig {
-        element_size: Some(h * COARSER),
-        patch_size: Some(patch.max(h * COARSER)),
-        max_elements: None,
+        mesh: MeshSpec {
+            element_size: Some(h * COARSER),
+            patch_size: Some(patch.max(h * COARSER)),
+            max_elements: None,
+            ..config.mesh
+        },
         ..config
     };
     let problem = Problem::new(scene, coarse).map_err(|e| e.to_string())?;
@@ -197,6 +201,7 @@ fn compute(
         tolerance,
         PASSES,
         UNSHOT,
+        cancel,
     )
     .map_err(|e| e.to_string())?
     .solver;
@@ -226,7 +231,7 @@ mod tests {
     fn the_adaptive_mesh_is_smaller_and_graded() {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         let config = SolverConfig {
-            element_size: Some(60.0),
+            mesh: MeshSpec::element(60.0),
             ..SolverConfig::default()
         };
         let job =

@@ -167,6 +167,7 @@ pub fn compute(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nusselt_core::mesh::MeshSpec;
     use nusselt_core::scene::{LoadOptions, Scene};
     use nusselt_core::solver::SolverConfig;
 
@@ -178,8 +179,7 @@ mod tests {
     fn the_covered_fraction_is_the_form_factor() {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         let config = SolverConfig {
-            element_size: Some(100.0),
-            patch_size: Some(200.0),
+            mesh: MeshSpec::sized(100.0, 200.0),
             ..Default::default()
         };
         let problem = Problem::new(scene, config).expect("problem");

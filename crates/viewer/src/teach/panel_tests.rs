@@ -15,6 +15,7 @@ use super::{TeachCommand, TeachState, TeachView, leave_views, teach_panel};
 use crate::panels::Action;
 use crate::snapshot::Snapshot;
 use crate::solver_thread::{Command, SolverHandle, ThreadConfig};
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::SolverConfig;
 
@@ -58,8 +59,7 @@ pub(crate) fn coarse_cornell_thread() -> SolverHandle {
         scene,
         ThreadConfig {
             solver: SolverConfig {
-                element_size: Some(60.0),
-                patch_size: Some(120.0),
+                mesh: MeshSpec::sized(60.0, 120.0),
                 ..Default::default()
             },
             play: false,

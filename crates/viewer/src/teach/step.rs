@@ -141,6 +141,7 @@ pub fn capture(before: Before, solver: &dyn Solver, geometry: &Geometry) -> Opti
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nusselt_core::mesh::MeshSpec;
     use nusselt_core::scene::{LoadOptions, Scene};
     use nusselt_core::solver::{Problem, SolverConfig, SolverKind};
 
@@ -152,8 +153,7 @@ mod tests {
     fn each_gain_is_the_lectures_formula() {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
         let config = SolverConfig {
-            element_size: Some(60.0),
-            patch_size: Some(120.0),
+            mesh: MeshSpec::sized(60.0, 120.0),
             ..Default::default()
         };
         let problem = Problem::new(scene, config).expect("problem");

@@ -3,6 +3,7 @@
 use glam::DVec3;
 
 use super::*;
+use crate::mesh::MeshSpec;
 use crate::render::pathtrace::PathTracer;
 use crate::render::{Camera, direct, display_bvh};
 use crate::scene::{LoadOptions, Scene};
@@ -40,8 +41,7 @@ fn cuboid(lo: DVec3, hi: DVec3, first: usize) -> String {
 /// A shooting solve to a residual of 1e-6: the problem and its element radiance.
 fn solve(scene: Scene, element_size: f64) -> (Problem, Vec<Rgb>) {
     let config = SolverConfig {
-        element_size: Some(element_size),
-        patch_size: Some(element_size),
+        mesh: MeshSpec::sized(element_size, element_size),
         ..Default::default()
     };
     let mut solver = SolverKind::Shooting
@@ -224,7 +224,7 @@ fn a_glass_slab_of_index_one_is_invisible() {
     assert!(slab.has_specular() && !plain.has_specular());
     let settings = from_the_cornell_camera(24);
     let points = |scene: &Scene| -> Image {
-        let mesh = crate::mesh::Mesh::build(scene, 140.0).expect("mesh");
+        let mesh = crate::mesh::Mesh::build(scene, &MeshSpec::element(140.0)).expect("mesh");
         let bvh = display_bvh(scene, &mesh);
         let zero = vec![Rgb::ZERO; mesh.vertices.len()];
         let view = SolutionView {

@@ -1,6 +1,7 @@
 //! Tests of hierarchical and wavelet radiosity.
 
 use super::*;
+use crate::mesh::MeshSpec;
 use crate::scene::{LoadOptions, Scene};
 use crate::solver::HierarchicalOptions;
 use crate::solver::SolverConfig;
@@ -130,8 +131,7 @@ fn full_solution_errors(basis: Basis, tolerances: &[f64]) -> Vec<f64> {
     // the hierarchy's leaves approximate (larger patches shoot their average radiosity,
     // a different discretisation, 1.7 % away on this mesh).
     let base = SolverConfig {
-        element_size: Some(50.0),
-        patch_size: Some(50.0),
+        mesh: MeshSpec::sized(50.0, 50.0),
         ..SolverConfig::default()
     };
     let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("scene");
@@ -273,7 +273,7 @@ fn pieces_tile_their_node() {
 fn resident_bytes(name: &str, element_size: f64) -> usize {
     let scene = Scene::builtin(name, &LoadOptions::default()).expect("scene");
     let config = SolverConfig {
-        element_size: Some(element_size),
+        mesh: MeshSpec::element(element_size),
         ..SolverConfig::default()
     };
     Problem::new(scene, config)
@@ -288,7 +288,7 @@ fn resident_bytes(name: &str, element_size: f64) -> usize {
 fn the_link_budget_holds() {
     let budget_links = 20_000;
     let config = SolverConfig {
-        element_size: Some(50.0),
+        mesh: MeshSpec::element(50.0),
         memory_bytes: resident_bytes("cornell", 50.0) + budget_links * std::mem::size_of::<Link>(),
         ..SolverConfig::default()
     };
@@ -320,7 +320,7 @@ fn a_distant_cluster_receives_by_direction() {
     let scene = Scene::from_obj_str("c.obj", obj, &[("m.mtl", mtl)], &LoadOptions::default())
         .expect("scene");
     let config = SolverConfig {
-        element_size: Some(0.05),
+        mesh: MeshSpec::element(0.05),
         hierarchical: HierarchicalOptions {
             link_tolerance: 0.01,
         },
@@ -374,7 +374,6 @@ fn a_distant_cluster_receives_by_direction() {
 /// 0.9996, one element 0.917. Each element's gathered light is now rescaled to its covered
 /// hemisphere ([`super::conserve`]), which is all of it in a closed box: every element
 /// gathers 1 to rounding.
-// Long by design: the scene (box and ball) is built in the test so the check reads with it.
 #[test]
 fn a_ball_in_a_closed_box_gathers_all_its_light() {
     let dir = std::env::temp_dir().join(format!("nusselt_ball_{}", std::process::id()));

@@ -378,12 +378,13 @@ fn planar_groups(mesh: &Mesh) -> Vec<Group> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::MeshSpec;
     use crate::scene::{LoadOptions, Scene};
 
     #[test]
     fn every_element_is_one_leaf_and_ranges_nest() {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
-        let mesh = Mesh::build(&scene, 60.0).expect("mesh");
+        let mesh = Mesh::build(&scene, &MeshSpec::element(60.0)).expect("mesh");
         let h = Hierarchy::build(&mesh);
         assert_eq!(h.order.len(), mesh.elements.len());
         let mut seen = vec![false; mesh.elements.len()];
@@ -423,7 +424,7 @@ mod tests {
     #[test]
     fn area_sampling_picks_elements_by_area() {
         let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
-        let mesh = Mesh::build(&scene, 60.0).expect("mesh");
+        let mesh = Mesh::build(&scene, &MeshSpec::element(60.0)).expect("mesh");
         let h = Hierarchy::build(&mesh);
         let root = &h.nodes[0];
         let n = 20_000;

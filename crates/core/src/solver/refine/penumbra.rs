@@ -171,6 +171,7 @@ fn punctual_edge(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::MeshSpec;
     use crate::scene::{LoadOptions, Scene};
     use crate::solver::{Problem, SolverConfig, SolverKind, solve_to};
 
@@ -179,8 +180,7 @@ mod tests {
     /// wholly left of `left` or right of `right` is not, and there are at least four of each.
     fn check_marks(scene: Scene, edge: f64, left: f64, right: f64) {
         let config = SolverConfig {
-            element_size: Some(0.5),
-            patch_size: Some(1.0),
+            mesh: MeshSpec::sized(0.5, 1.0),
             ..Default::default()
         };
         let mut solver = SolverKind::Shooting

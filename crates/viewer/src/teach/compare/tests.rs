@@ -1,4 +1,5 @@
 use super::*;
+use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{GatherMethod, GatheringSolver, Solver, SolverConfig};
 
@@ -7,7 +8,7 @@ fn cornell() -> (Problem, Geometry) {
     let problem = Problem::new(
         scene,
         SolverConfig {
-            element_size: Some(100.0),
+            mesh: MeshSpec::element(100.0),
             ..SolverConfig::default()
         },
     )

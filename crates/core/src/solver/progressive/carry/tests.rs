@@ -1,13 +1,13 @@
 use std::sync::atomic::AtomicBool;
 
 use super::*;
+use crate::mesh::MeshSpec;
 use crate::scene::{LoadOptions, Scene};
 use crate::solver::{SolverConfig, StopCriteria, channel_sum};
 
 fn config() -> SolverConfig {
     SolverConfig {
-        element_size: Some(60.0),
-        patch_size: Some(120.0),
+        mesh: MeshSpec::sized(60.0, 120.0),
         ..Default::default()
     }
 }
@@ -15,7 +15,7 @@ fn config() -> SolverConfig {
 /// The scene on the mesh refined to `levels` per base patch (none: the base mesh).
 fn meshed(scene: &Scene, levels: &[u8]) -> Problem {
     let c = config();
-    let mesh = Mesh::build_refined(scene, 60.0, 120.0, levels, false).expect("mesh");
+    let mesh = Mesh::build_refined(scene, &MeshSpec::sized(60.0, 120.0), levels).expect("mesh");
     Problem::with_mesh(scene.clone(), c, mesh).expect("problem")
 }
 
@@ -189,7 +189,7 @@ fn a_carried_furnace_converges_like_one_solved_from_dark() {
     };
     let scene = Scene::builtin("furnace", &options).expect("furnace");
     let problem = |levels: &[u8]| {
-        let mesh = Mesh::build_refined(&scene, 0.25, 0.5, levels, false).expect("mesh");
+        let mesh = Mesh::build_refined(&scene, &MeshSpec::sized(0.25, 0.5), levels).expect("mesh");
         Problem::with_mesh(scene.clone(), SolverConfig::default(), mesh).expect("problem")
     };
     let never = AtomicBool::new(false);
@@ -222,7 +222,7 @@ fn a_carried_furnace_converges_like_one_solved_from_dark() {
 fn another_base_mesh_is_declined() {
     let scene = cornell();
     let mut old = solved(&scene, &[], 0.5);
-    let other = Mesh::build_refined(&scene, 40.0, 80.0, &[], false).expect("mesh");
+    let other = Mesh::build_refined(&scene, &MeshSpec::sized(40.0, 80.0), &[]).expect("mesh");
     let problem = Problem::with_mesh(scene.clone(), config(), other).expect("problem");
     assert!(old.carry_to(problem, &AtomicBool::new(false)).is_err());
 }
