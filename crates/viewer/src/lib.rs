@@ -55,9 +55,9 @@ pub struct ViewerOptions {
 #[derive(Clone, Debug)]
 pub struct UiOptions {
     pub element_size: Option<f64>,
-    /// Patch size (`SolverConfig::patch_size`; a scene file's `mesh.patch_size`).
+    /// Patch size (`MeshSpec::patch_size`; a scene file's `mesh.patch_size`).
     pub patch_size: Option<f64>,
-    /// Element budget when no element size is given (`SolverConfig::max_elements`).
+    /// Element budget when no element size is given (`MeshSpec::max_elements`).
     pub max_elements: Option<usize>,
     /// Stop below this residual (default: the solver thread's).
     pub stop_unshot: Option<f64>,
@@ -87,7 +87,7 @@ pub struct UiOptions {
     /// Refine the mesh adaptively to this tolerance from the start.
     pub adaptive: Option<f64>,
     /// Cut the lights' shadow outlines into the surfaces before meshing
-    /// (`SolverConfig::discontinuity`).
+    /// (`MeshSpec::discontinuity`).
     pub discontinuity: bool,
     /// Start paused.
     pub paused: bool,

@@ -19,7 +19,7 @@
 //! `B = E`; later ones refine where the light has grown. The iteration is Jacobi's on the
 //! hierarchical system, so the residual falls like `ρ^k`.
 //!
-//! Error: that of the links kept (bounded by the tolerance, [`SolverConfig::link_tolerance`]
+//! Error: that of the links kept (bounded by the tolerance, [`HierarchicalOptions::link_tolerance`]
 //! times the scene's mean emitted radiosity, per link), of the 4-ray visibility, and of
 //! constant elements. The estimates err low more often than high, and summed over
 //! hundreds of links they lost light: the closed furnace box was 1–5 % off `E/(1 − ρ)` at
@@ -39,7 +39,7 @@
 //! (8.3 %; shooting 5.5 %), its statue's mean 0.997 of the reference's (0.824), wavelet
 //! 5.5 % and 1.001 (6.4 %, 0.894). docs/BENCHMARKS.md has the times.
 //!
-//! [`SolverConfig::link_tolerance`]: super::SolverConfig::link_tolerance
+//! [`HierarchicalOptions::link_tolerance`]: super::HierarchicalOptions::link_tolerance
 
 pub mod conserve;
 pub mod directional;
