@@ -241,20 +241,7 @@ pub fn cornell(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
     for (g, l, n, k, t, e) in &rows {
         writeln!(csv, "{g},{l},{n},{k},{t:.4},{e:.5e}")?;
     }
-    println!(
-        "\n| Cornell box vs path-traced reference | elements | steps / spp | seconds | image error |"
-    );
-    println!("|---|---:|---:|---:|---:|");
-    for (g, l, n, k, t, e) in &rows {
-        let last_of_run = g != "solver"
-            || rows
-                .iter()
-                .rfind(|r| r.0 == "solver" && r.1 == *l)
-                .is_some_and(|r| r.3 == *k);
-        if last_of_run {
-            println!("| {g}: {l} | {n} | {k} | {t:.2} | {:.2} % |", e * 100.0);
-        }
-    }
+    print!("\n{}", super::bench_doc::cornell_end_points(&rows));
     // Beyond the last measured count the path tracer's error falls as 1/√spp, so its time
     // to an error e is t_last · (e_last / e)² (labelled as extrapolated).
     let last = traced.last().copied();

@@ -546,29 +546,37 @@ fn cornell_image_times(rows: &[CornellRow]) -> Vec<TimesTo> {
         .collect()
 }
 
-/// `cornell_image.csv`: each run's end point (the solver curves' last rows), then the
-/// times to 5 %, 2 %, 1.5 % and 1 %, as `bench --only cornell-image` prints them.
-fn cornell_image(dir: &Path) -> Result<String> {
-    let (csv, rows) = load_cornell_image(dir)?;
-    let mut out = csv.source();
-    out.push_str(
-        "\n| Cornell box vs path-traced reference | elements | steps / spp | seconds | image error |\n",
+/// The end point of each run of `bench --only cornell-image` (a solver curve's last row, every
+/// other row), as a Markdown table: the bench prints it, the docs quote it.
+pub(super) fn cornell_end_points<N: std::fmt::Display + PartialEq>(
+    rows: &[(String, String, N, N, f64, f64)],
+) -> String {
+    let mut out = String::from(
+        "| Cornell box vs path-traced reference | elements | steps / spp | seconds | image error |\n|---|---:|---:|---:|---:|\n",
     );
-    out.push_str("|---|---:|---:|---:|---:|\n");
-    for (g, l, n, k, t, e) in &rows {
+    for (g, l, n, k, t, e) in rows {
         let last_of_run = g != "solver"
             || rows
                 .iter()
                 .rfind(|r| r.0 == "solver" && r.1 == *l)
                 .is_some_and(|r| r.3 == *k);
         if last_of_run {
-            writeln!(
-                out,
-                "| {g}: {l} | {n} | {k} | {t:.2} | {:.2} % |",
+            out.push_str(&format!(
+                "| {g}: {l} | {n} | {k} | {t:.2} | {:.2} % |\n",
                 e * 100.0
-            )?;
+            ));
         }
     }
+    out
+}
+
+/// `cornell_image.csv`: each run's end point (the solver curves' last rows), then the
+/// times to 5 %, 2 %, 1.5 % and 1 %, as `bench --only cornell-image` prints them.
+fn cornell_image(dir: &Path) -> Result<String> {
+    let (csv, rows) = load_cornell_image(dir)?;
+    let mut out = csv.source();
+    out.push('\n');
+    out.push_str(&cornell_end_points(&rows));
     out.push('\n');
     for (limit, rad, pt) in cornell_image_times(&rows) {
         let pt = match pt {

@@ -364,6 +364,16 @@ impl Mesh {
             None => default_element_size(scene),
         };
         let mut tries = 0;
+        let build = |size: f64| {
+            Mesh::build_from(
+                scene,
+                topo,
+                size,
+                spec.patch_for(size),
+                &[],
+                spec.discontinuity,
+            )
+        };
         // A face smaller than an element is one element: with more faces than the budget
         // the count cannot reach it, and coarser elements only coarsen the large faces.
         let min_count = (topo.planar_members().len() * if scene.two_sided { 2 } else { 1 }) as f64;
@@ -372,25 +382,10 @@ impl Mesh {
             // only coarsen the few large faces (the atrium: 227 k elements at this size, 216 k
             // at 3.4× it, 5 s a try), so one meshing at the size that cuts them into about
             // 5 % more elements than the surfaces.
-            size = size.max(element_size_for_excess(scene, 0.05 * min_count));
-            return Mesh::build_from(
-                scene,
-                topo,
-                size,
-                spec.patch_for(size),
-                &[],
-                spec.discontinuity,
-            );
+            return build(size.max(element_size_for_excess(scene, 0.05 * min_count)));
         }
         loop {
-            let mesh = Mesh::build_from(
-                scene,
-                topo,
-                size,
-                spec.patch_for(size),
-                &[],
-                spec.discontinuity,
-            )?;
+            let mesh = build(size)?;
             let count = mesh.elements.len() as f64;
             tries += 1;
             if count <= 1.05 * target || count <= 1.05 * min_count || tries == 3 {
