@@ -1,6 +1,6 @@
 //! The eframe app: takes snapshots and events from the solver thread, lays out the panels
-//! and the viewport, and applies every user action in one place ([`ViewerApp::handle`]).
-//! The viewport and its keys are in [`super::viewport`], scripted runs in
+//! and the viewport, and applies every user action in one place (`ViewerApp::handle`).
+//! The viewport and its keys are in `super::viewport`, scripted runs in
 //! [`super::automation`], timings in [`super::frame_log`].
 
 use std::path::{Path, PathBuf};

@@ -7,7 +7,7 @@
 //!   wakes the UI when it publishes.
 //! - [`render`]: wgpu pipelines in egui-wgpu's callback resources (egui's `custom3d_wgpu`
 //!   pattern); per-vertex radiance, exposure and linear→sRGB in `shaders/viewport.wgsl`.
-//! - [`app`]: the eframe app: side panel ([`panels`]), viewport (`viewport.rs`) with orbit
+//! - [`app`]: the eframe app: side panel (`panels`), viewport (`viewport.rs`) with orbit
 //!   camera ([`camera`]), and every user action funnelled through `ViewerApp::handle`.
 //! - [`automation`]: `--screenshot`, `--edit`: reproducible runs for screenshots and
 //!   tests; [`frame_log`]: `--frame-log`, the timings and latency figures in

@@ -3,7 +3,7 @@
 //! glTF 2.0; the colours are the mesh's `Color` attribute), Godot, Bevy and any viewer.
 //!
 //! What is written (glTF 2.0 specification, Khronos 2021):
-//! - one mesh, one primitive per material, each with its own welded vertices ([`super::weld`]);
+//! - one mesh, one primitive per material, each with its own welded vertices (`super::weld`);
 //! - `COLOR_0` (FLOAT VEC3): the displayed radiance times the exposure, clamped to [0, 1],
 //!   linear like every glTF colour (a viewer encodes it for the screen, as it does a
 //!   texture), so a viewer shows what `nusselt render` writes to a PNG at that exposure;

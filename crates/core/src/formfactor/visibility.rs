@@ -284,7 +284,7 @@ pub fn occluded_point_to_polygon(
 /// otherwise the clipped polygon (possibly degenerate).
 ///
 /// "On" allows the round-off of the points' coordinates: a vertex below the plane by at
-/// most [`ON_PLANE`] times its distance from `x` counts as on it. Without that, a shooter
+/// most `ON_PLANE` times its distance from `x` counts as on it. Without that, a shooter
 /// whose edge lies in the receiver's plane (a wall patch starting at the height of a box
 /// top) was clipped or not depending on the last bit of a coordinate, and the clipped
 /// polygon's sampler places its stratified points differently, so the same scene in another

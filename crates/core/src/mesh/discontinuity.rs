@@ -17,7 +17,7 @@
 //! several blockers (quadric surfaces in general) and higher-order ones are not found here,
 //! and faces that straddle `v`'s height are skipped. Contact lines, the zeroth order, are
 //! `footprint.rs`. The lines are inserted as the boundaries of convex pieces
-//! ([`super::footprint`]'s cut), and each piece is meshed on its own, so an element edge
+//! (`super::footprint`'s cut), and each piece is meshed on its own, so an element edge
 //! follows every line; where pieces meet, their elements need not share vertices (the
 //! display interpolates per vertex position, as across any two units).
 //!

@@ -122,7 +122,7 @@ pub enum Event {
     Error(String),
     /// Something the user should know that is not an error (lights added to an unlit model).
     Notice(String),
-    /// The solver panicked: "solver failed on <scene>: <message>". The solver it was
+    /// The solver panicked: `"solver failed on <scene>: <message>"`. The solver it was
     /// working on is gone (nothing more is published for it, so the last snapshot stays on
     /// screen); the thread takes commands as before, so another scene can be loaded.
     Failed(String),

@@ -17,8 +17,8 @@ use super::DirectLight;
 /// The exact direct light is the costly part of a sample, and inside most pixels it is
 /// smooth; so a pixel whose camera samples all land on one surface (at 9 or more samples)
 /// evaluates it at one sample per quadrant and one near the middle, and when the four
-/// agree within [`QUADRANTS_AGREE`] and the plane through them meets the fifth within
-/// [`PLANE_MISS`] of what the pixel shows, the plane's mean stands for the direct light
+/// agree within `QUADRANTS_AGREE` and the plane through them meets the fifth within
+/// `PLANE_MISS` of what the pixel shows, the plane's mean stands for the direct light
 /// of every sample. Pixels that see several surfaces, or a shadow edge the four disagree
 /// on, get the direct light of every sample, and those that see several surfaces the edge
 /// samples of [`RenderSettings::edge_spp`]. Scenes with mirrors or glass take the plain

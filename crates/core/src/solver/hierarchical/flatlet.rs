@@ -7,7 +7,7 @@
 //! hierarchical` is the Haar case. The flatlet basis F2 puts 2 × 2 boxes on each square;
 //! on our binary (median-split) surface trees that is a node's grandchildren, up to 4
 //! pieces, and a link a 4 × 4 block. A block is kept when every piece pair passes the
-//! hierarchical oracle ([`Linker::decide`]); otherwise the pair is split like a scalar link.
+//! hierarchical oracle (`Linker::decide`); otherwise the pair is split like a scalar link.
 //! Links between clusters, or with a cluster on one end, stay scalar (clusters as in
 //! hierarchical radiosity).
 //!
@@ -89,7 +89,7 @@ pub fn block_gather(
 impl Linker<'_> {
     /// The oracle for a block between two planar, non-overlapping nodes: every piece pair
     /// decided as a scalar link would be; any split among them splits the pair (the larger
-    /// node, as [`Linker::decide`] chooses).
+    /// node, as `Linker::decide` chooses).
     pub(super) fn decide_block(&self, i: u32, j: u32, b: &[Rgb], eps: f64) -> BlockDecision {
         let (pi, ni) = pieces(self.tree, i);
         let (pj, nj) = pieces(self.tree, j);

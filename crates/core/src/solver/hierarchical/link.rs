@@ -102,7 +102,7 @@ pub struct Linker<'a> {
     pub epsilon: f64,
     pub seed: u64,
     /// Receivers smaller than this get a threshold raised by `reference_area / area`
-    /// (see [`Linker::receiver_eps`]).
+    /// (see `Linker::receiver_eps`).
     pub reference_area: f64,
     /// Planar pairs linked by flatlet blocks ([`super::flatlet`]) instead of scalar links.
     pub flatlets: bool,
