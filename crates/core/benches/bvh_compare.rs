@@ -267,9 +267,14 @@ fn check(name: &str, ours: &Bvh, theirs: &Theirs, segs: &[(DVec3, DVec3)]) {
     println!(
         "{name}: {} rays: {blocked} shadow rays blocked, {hits} closest hits ({ties} ties \
          between triangles at the same f32 distance; worst relative t difference on the same \
-         triangle {worst:.1e}); answers differ on {} rays",
+         triangle {worst:.1e}); answers differ on {} rays ({} shadow rays, {} closest hits)",
         segs.len(),
-        differ.len()
+        differ.len(),
+        differ.iter().filter(|(_, d)| d.starts_with("any")).count(),
+        differ
+            .iter()
+            .filter(|(_, d)| d.starts_with("closest"))
+            .count(),
     );
     // Where they differ, brute force over every triangle says which is right.
     let wrong: Vec<usize> = differ
