@@ -248,7 +248,8 @@ impl Bvh {
                 let first = nd.first_or_right as usize;
                 for k in first..first + nd.count as usize {
                     let tri = &self.tris[k];
-                    if let Some((t, u, v, front)) = intersect(tri, o, d, t_min as f32, best_t)
+                    if let Some((t, u, v, front)) =
+                        intersect(tri, tri.cull_back, o, d, t_min as f32, best_t)
                         && !self.is_hole(tri, u, v)
                     {
                         best_t = t;
@@ -338,9 +339,7 @@ impl Bvh {
                             continue;
                         }
                         // Shadow rays ignore culling: a back face still blocks light.
-                        let mut t = *tri;
-                        t.cull_back = false;
-                        if let Some((_, u, v, _)) = intersect(&t, o, d, t_min, t_max)
+                        if let Some((_, u, v, _)) = intersect(tri, false, o, d, t_min, t_max)
                             && !self.is_hole(tri, u, v)
                         {
                             return true;
@@ -432,9 +431,9 @@ impl Bvh {
         let d = self.local_dir(ray.dir);
         let (t_min, t_max) = (t_min as f32, t_max as f32);
         candidates.iter().any(|&k| {
-            let mut t = self.tris[k as usize];
-            t.cull_back = false;
-            intersect(&t, o, d, t_min, t_max).is_some_and(|(_, u, v, _)| !self.is_hole(&t, u, v))
+            let t = &self.tris[k as usize];
+            intersect(t, false, o, d, t_min, t_max)
+                .is_some_and(|(_, u, v, _)| !self.is_hole(t, u, v))
         })
     }
 }
@@ -464,21 +463,29 @@ fn refine(tri: &Tri, o: DVec3, d: DVec3) -> Option<(f64, f64, f64)> {
 fn slab(n: &Node, o: Vec3, inv: Vec3, t_max: f32) -> Option<f32> {
     let t0 = (n.min - o) * inv;
     let t1 = (n.max - o) * inv;
+    // A NaN lane (0 * inf: the origin on a slab's plane, the direction along it) is
+    // skipped by `f32::min`/`max`, which keeps the node. `tmin` is never NaN after
+    // `max(0.0)`, nor `tmax` after `min(t_max)` unless `t_max` is NaN, and then no triangle
+    // test passes anyway: one comparison decides (two tests and branches less per box).
     let tmin = t0.min(t1).max_element().max(0.0);
     let tmax = t0.max(t1).min_element().min(t_max);
-    // NaN (0 * inf) compares false, which conservatively keeps the node.
-    if tmin <= tmax || tmin.is_nan() || tmax.is_nan() {
-        Some(tmin)
-    } else {
-        None
-    }
+    if tmin <= tmax { Some(tmin) } else { None }
 }
 
+/// Möller–Trumbore; `cull_back` skips back faces (closest hits pass the triangle's own flag,
+/// shadow rays `false`: a back face still blocks light).
 #[inline]
-fn intersect(tri: &Tri, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<(f32, f32, f32, bool)> {
+fn intersect(
+    tri: &Tri,
+    cull_back: bool,
+    o: Vec3,
+    d: Vec3,
+    t_min: f32,
+    t_max: f32,
+) -> Option<(f32, f32, f32, bool)> {
     let p = d.cross(tri.e2);
     let det = tri.e1.dot(p);
-    if det.abs() < 1e-20 || (tri.cull_back && det < 0.0) {
+    if det.abs() < 1e-20 || (cull_back && det < 0.0) {
         return None;
     }
     let inv_det = 1.0 / det;

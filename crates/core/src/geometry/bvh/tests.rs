@@ -16,7 +16,7 @@ fn brute_closest(bvh: &Bvh, tris: &[TriangleInput], ray: &Ray) -> Option<(f64, u
         };
         let limit = best.map_or(f32::INFINITY, |b| b.0 as f32);
         let (o, d) = (bvh.local_point(ray.origin), bvh.local_dir(ray.dir));
-        if let Some((tt, ..)) = intersect(&tri, o, d, 0.0, limit) {
+        if let Some((tt, ..)) = intersect(&tri, tri.cull_back, o, d, 0.0, limit) {
             best = Some((tt as f64, t.id));
         }
     }
