@@ -22,7 +22,7 @@ use std::time::{Duration, Instant};
 use glam::{DVec3, Vec3};
 use nusselt_core::geometry::bvh::TriangleInput;
 use nusselt_core::geometry::{Aabb, Bvh, Ray, Rng};
-use nusselt_core::mesh::Mesh;
+use nusselt_core::mesh::{Mesh, MeshSpec};
 use nusselt_core::scene::{LoadOptions, Scene};
 use obvhs::{BvhBuildParams, cwbvh::CwBvh, cwbvh::builder::build_cwbvh_from_tris};
 use rayon::prelude::*;
@@ -405,7 +405,7 @@ fn sponza_path() -> PathBuf {
 fn main() {
     let opts = LoadOptions::default();
     let cornell = Scene::builtin("cornell", &opts).expect("cornell");
-    let mesh = Mesh::build(&cornell, 20.0).expect("mesh");
+    let mesh = Mesh::build(&cornell, &MeshSpec::element(20.0)).expect("mesh");
     compare(
         "cornell",
         &mesh.blocker_triangles(&cornell),
@@ -425,7 +425,7 @@ fn main() {
             return;
         }
     };
-    let mesh = Mesh::build_for_budget(&scene, None, None).expect("sponza mesh");
+    let mesh = Mesh::build(&scene, &MeshSpec::default()).expect("sponza mesh");
     println!(
         "sponza: loaded and meshed in {:.1} s ({} elements)",
         t.elapsed().as_secs_f64(),
