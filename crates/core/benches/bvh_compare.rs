@@ -21,24 +21,17 @@ use std::time::{Duration, Instant};
 
 use glam::{DVec3, Vec3};
 use nusselt_core::geometry::bvh::TriangleInput;
-use nusselt_core::geometry::{Aabb, Bvh, Ray, Rng};
+use nusselt_core::geometry::{Aabb, Bvh, Ray};
 use nusselt_core::mesh::{Mesh, MeshSpec};
 use nusselt_core::scene::{LoadOptions, Scene};
 use obvhs::{BvhBuildParams, cwbvh::CwBvh, cwbvh::builder::build_cwbvh_from_tris};
 use rayon::prelude::*;
 
+mod common;
+use common::segments;
+
 /// Shadow rays stop this far (in ray parameter) short of both ends, as in `benches/core.rs`.
 const EPS: f64 = 1e-6;
-
-/// Random segments between points just off the mesh's elements (the `bvh` group's rays).
-fn segments(mesh: &Mesh, n: usize) -> Vec<(DVec3, DVec3)> {
-    let mut rng = Rng::new(5, 0);
-    let pick = |rng: &mut Rng| {
-        let e = &mesh.elements[(rng.next_f64() * mesh.elements.len() as f64) as usize];
-        e.centroid + e.normal * 1e-3
-    };
-    (0..n).map(|_| (pick(&mut rng), pick(&mut rng))).collect()
-}
 
 /// A stored triangle as ours stores it: `f32` corner and edges in normalised coordinates.
 #[derive(Clone, Copy)]

@@ -10,23 +10,16 @@ use std::sync::atomic::AtomicBool;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::DVec3;
-use nusselt_core::geometry::{Bvh, Ray, Rng};
+use nusselt_core::geometry::{Bvh, Ray};
 use nusselt_core::mesh::{Mesh, MeshSpec};
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{ProgressiveSolver, SolverConfig, SolverKind, StopCriteria, run_solver};
 
+mod common;
+use common::segments;
+
 fn cornell() -> Scene {
     Scene::builtin("cornell", &LoadOptions::default()).expect("cornell")
-}
-
-/// Random segments between points on the Cornell box's surfaces (shadow-ray workload).
-fn segments(mesh: &Mesh, n: usize) -> Vec<(DVec3, DVec3)> {
-    let mut rng = Rng::new(5, 0);
-    let pick = |rng: &mut Rng| {
-        let e = &mesh.elements[(rng.next_f64() * mesh.elements.len() as f64) as usize];
-        e.centroid + e.normal * 1e-3
-    };
-    (0..n).map(|_| (pick(&mut rng), pick(&mut rng))).collect()
 }
 
 fn bvh_rays(c: &mut Criterion) {

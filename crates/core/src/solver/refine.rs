@@ -264,8 +264,7 @@ fn refine_with(
             break;
         }
         solve_to(solver.as_mut(), unshot.max(REFINE_UNSHOT));
-        let radiance = solver.radiosity().to_vec();
-        let refined = match refinement.next(solver.problem(), &radiance)? {
+        let refined = match refinement.next(solver.problem(), solver.radiosity())? {
             Next::Refined(refined) => *refined,
             Next::Done { stopped } => {
                 return Ok(Refined {

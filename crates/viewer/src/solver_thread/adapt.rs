@@ -49,8 +49,7 @@ impl Worker {
         if !Refinement::due(solver.residual(), self.stop_unshot) && !self.exhausted {
             return;
         }
-        let radiance = solver.radiosity().to_vec();
-        let refined = match a.next(solver.problem(), &radiance) {
+        let refined = match a.next(solver.problem(), solver.radiosity()) {
             Ok(Next::Refined(p)) => p,
             Ok(Next::Done { stopped }) => {
                 // Done: the solve goes on to convergence on this mesh.

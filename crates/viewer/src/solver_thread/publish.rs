@@ -144,10 +144,10 @@ impl Worker {
 /// solver's estimate of the light still missing).
 fn drawn_radiance(solver: &dyn Solver, geometry: &Geometry) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
     let mesh = &solver.problem().mesh;
-    let plain = solver.radiosity().to_vec();
+    let plain = solver.radiosity();
     let shown = solver.display_radiance();
-    let correction: Vec<Rgb> = shown.iter().zip(&plain).map(|(s, b)| *s - *b).collect();
-    let radiance = geometry.expand(&mesh.vertex_values(&plain));
+    let correction: Vec<Rgb> = shown.iter().zip(plain).map(|(s, b)| *s - *b).collect();
+    let radiance = geometry.expand(&mesh.vertex_values(plain));
     let correction = geometry.expand(&mesh.vertex_values(&correction));
     debug_assert!(radiance.iter().flatten().all(|x| x.is_finite()));
     (radiance, correction)

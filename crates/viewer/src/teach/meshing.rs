@@ -17,7 +17,7 @@ use std::thread::JoinHandle;
 use std::time::Instant;
 
 use nusselt_core::mesh::MeshSpec;
-use nusselt_core::scene::{Camera, Rgb, Scene};
+use nusselt_core::scene::{Camera, Scene};
 use nusselt_core::solver::{Problem, Solver, SolverConfig, SolverKind, StopCriteria, run_solver};
 
 use super::item_image::ItemImage;
@@ -148,7 +148,7 @@ fn side(
     if cancel.load(Ordering::Relaxed) {
         return Err("cancelled".into());
     }
-    let radiance: Vec<Rgb> = solver.radiosity().to_vec();
+    let radiance = solver.radiosity();
     let problem = solver.problem();
     let mesh = &problem.mesh;
     let bvh = nusselt_core::render::display_bvh(&problem.scene, mesh);
