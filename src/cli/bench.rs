@@ -41,9 +41,25 @@ pub struct BenchArgs {
     /// tracer), `large`: the gallery and a million-element
     /// Cornell box with shooting, hierarchical and wavelet radiosity, several minutes;
     /// `sponza`: the 263 k-triangle atrium with default flags, `nusselt render` as a child
-    /// process: setup phases, shots/s, the vertex pass, peak memory, about 4 minutes).
+    /// process: setup phases, shots/s, the vertex pass, peak memory, about 4 minutes;
+    /// `live`: the viewer's solver thread on `--live-model` (default the Crytek atrium, the
+    /// Šibenik cathedral and the Dabrović atrium): its displayed image against its
+    /// converged one over time, `live.csv`, `live_summary.csv` and `live.svg`).
     #[arg(long)]
     pub only: Option<String>,
+    /// Models for `live` (repeat the flag for several).
+    #[arg(long, default_values = [
+        "../shared/models/crytek_sponza/sponza.obj",
+        "../shared/models/sibenik/sibenik.obj",
+        "../shared/models/dabrovic_sponza/sponza.obj",
+    ])]
+    pub live_model: Vec<PathBuf>,
+    /// The viewer's solver for `live` (`auto`, as `nusselt view` chooses, or a name).
+    #[arg(long, default_value = "auto")]
+    pub live_solver: String,
+    /// Longest run per model for `live`, in seconds.
+    #[arg(long, default_value_t = 240.0)]
+    pub live_seconds: f64,
     /// The Cornell box's path-traced reference image for `cornell-image`.
     #[arg(long, default_value = "benches/data/cornell_256_ref.pfm")]
     pub cornell_reference: PathBuf,
@@ -476,6 +492,14 @@ fn image_benches(args: &BenchArgs, wanted: &dyn Fn(&str) -> bool) -> Result<()> 
     // Needs a model that is not part of the program: only when asked for.
     if args.only.as_deref().is_some_and(|o| "sponza".contains(o)) {
         super::bench_sponza::sponza(&args.out, &args.sponza)?;
+    }
+    if args.only.as_deref() == Some("live") {
+        super::bench_live::live(
+            &args.out,
+            &args.live_model,
+            Some(args.live_solver.as_str()),
+            args.live_seconds,
+        )?;
     }
     if wanted("cornell-image") {
         super::bench_cornell::cornell(&args.out, &args.cornell_reference, args.seconds)?;

@@ -8,6 +8,7 @@ mod bench_cornell;
 mod bench_doc;
 mod bench_hierarchical;
 mod bench_images;
+mod bench_live;
 mod bench_meshing;
 mod bench_specular;
 mod bench_sponza;
