@@ -1,9 +1,8 @@
 //! Building a [`Mesh`]: meshing units (a convex surface outline, a large face, or a
 //! cluster of small faces) into patches and elements.
 
-use std::collections::HashMap;
-
 use glam::DVec3;
+use rustc_hash::FxHashMap;
 
 use super::cluster::{cluster_parts, cluster_patch};
 use super::footprint;
@@ -172,7 +171,7 @@ struct Units {
 struct Small {
     faces: Vec<u32>,
     /// Per planar surface, its convex outline and face count.
-    outline: HashMap<u32, (Vec<DVec3>, usize)>,
+    outline: FxHashMap<u32, (Vec<DVec3>, usize)>,
 }
 
 impl Units {

@@ -1,9 +1,8 @@
 //! Clusters of small faces: the polygons a cluster is meshed as, and the planar proxy
 //! patch that shoots for them (its mean plane, convex hull and prism for shaft culling).
 
-use std::collections::{HashMap, HashSet};
-
 use glam::DVec3;
+use rustc_hash::{FxHashMap, FxHashSet};
 
 use super::surfaces::Topology;
 use super::{Element, Patch};
@@ -16,14 +15,14 @@ use crate::scene::Scene;
 pub(super) fn cluster_parts(
     scene: &Scene,
     topo: &Topology,
-    small_outline: &HashMap<u32, (Vec<DVec3>, usize)>,
+    small_outline: &FxHashMap<u32, (Vec<DVec3>, usize)>,
     faces: &[u32],
 ) -> Vec<(Vec<DVec3>, usize)> {
-    let mut count: HashMap<u32, usize> = HashMap::new();
+    let mut count: FxHashMap<u32, usize> = FxHashMap::default();
     for &f in faces {
         *count.entry(topo.planar[f as usize]).or_default() += 1;
     }
-    let mut done: HashSet<u32> = HashSet::new();
+    let mut done: FxHashSet<u32> = FxHashSet::default();
     let mut parts = Vec::new();
     for &f in faces {
         let surface = topo.planar[f as usize];

@@ -8,9 +8,8 @@
 //! is set to the interpolation along that edge so the shading has no cracks (Baum, Mann,
 //! Smith, Winget 1991).
 
-use std::collections::HashMap;
-
 use glam::DVec3;
+use rustc_hash::FxHashMap;
 
 use super::{ElementId, Mesh, TVertex};
 use crate::scene::Rgb;
@@ -159,7 +158,7 @@ impl Mesh {
             let q = (p / eps).round();
             (q.x as i64, q.y as i64, q.z as i64)
         };
-        let mut index: HashMap<(u32, (i64, i64, i64)), u32> = HashMap::new();
+        let mut index: FxHashMap<(u32, Cell), u32> = FxHashMap::default();
         let mut vertex_group: Vec<u32> = Vec::new();
         for (ei, &group) in element_group.iter().enumerate() {
             for k in 0..self.elements[ei].corner_count as usize {
@@ -184,38 +183,31 @@ impl Mesh {
     }
 
     /// The vertices lying inside an edge of an element of their display group (within
-    /// `eps`), found through a grid of cells of [`Mesh::t_vertex_cell`].
+    /// `eps`), found through a grid of cells of [`Mesh::t_vertex_cell`]. A vertex inside
+    /// several edges takes the first in element and edge order. The elements are searched
+    /// in parallel in fixed chunks, each listing its hits in that order, so the first hit
+    /// of each vertex does not depend on the thread count.
     fn find_t_vertices(&mut self, element_group: &[u32], vertex_group: &[u32], eps: f64) {
+        use rayon::prelude::*;
+        const CHUNK: usize = 2048;
         let grid = VertexGrid::new(&self.vertices, self.t_vertex_cell(eps));
-        let mut found: HashMap<u32, TVertex> = HashMap::new();
-        for (e, &group) in self.elements.iter().zip(element_group) {
-            let n = e.corner_count as usize;
-            for k in 0..n {
-                let (a, b) = (e.vertices[k], e.vertices[(k + 1) % n]);
-                let (pa, pb) = (self.vertices[a as usize], self.vertices[b as usize]);
-                let d = pb - pa;
-                let len2 = d.length_squared();
-                if len2 <= 0.0 {
-                    continue;
-                }
-                for v in grid.near_edge(pa, pb, eps, self.vertices.len()) {
-                    if v == a || v == b || vertex_group[v as usize] != group {
-                        continue;
-                    }
-                    let p = self.vertices[v as usize];
-                    let t = (p - pa).dot(d) / len2;
-                    if t <= 1e-9 || t >= 1.0 - 1e-9 {
-                        continue;
-                    }
-                    if (pa + d * t - p).length() < eps * 10.0 {
-                        found.entry(v).or_insert(TVertex { vertex: v, a, b, t });
-                    }
-                }
-            }
+        let search = TSearch {
+            vertices: &self.vertices,
+            vertex_group,
+            grid: &grid,
+            eps,
+        };
+        let hits: Vec<Vec<TVertex>> = self
+            .elements
+            .par_chunks(CHUNK)
+            .zip(element_group.par_chunks(CHUNK))
+            .map(|(elements, groups)| search.hits(elements, groups))
+            .collect();
+        let mut first: Vec<Option<TVertex>> = vec![None; self.vertices.len()];
+        for tv in hits.into_iter().flatten() {
+            first[tv.vertex as usize].get_or_insert(tv);
         }
-        let mut list: Vec<TVertex> = found.into_values().collect();
-        list.sort_by_key(|t| t.vertex);
-        self.t_vertices = list;
+        self.t_vertices = first.into_iter().flatten().collect();
     }
 
     /// The cell size of the T-vertex search grid: a typical element's size (the median
@@ -254,35 +246,136 @@ impl Mesh {
     }
 }
 
-/// The display vertices bucketed by cubic cells.
+/// What the T-vertex search reads.
+struct TSearch<'a> {
+    vertices: &'a [DVec3],
+    vertex_group: &'a [u32],
+    grid: &'a VertexGrid,
+    eps: f64,
+}
+
+impl TSearch<'_> {
+    /// The vertices lying inside an edge of `elements` (of display groups `groups`), in
+    /// element and edge order (a vertex once per edge).
+    fn hits(&self, elements: &[super::Element], groups: &[u32]) -> Vec<TVertex> {
+        let (vertices, eps) = (self.vertices, self.eps);
+        let mut out = Vec::new();
+        let mut scratch = Scratch::default();
+        for (e, &group) in elements.iter().zip(groups) {
+            let n = e.corner_count as usize;
+            for k in 0..n {
+                let (a, b) = (e.vertices[k], e.vertices[(k + 1) % n]);
+                let (pa, pb) = (vertices[a as usize], vertices[b as usize]);
+                let d = pb - pa;
+                let len2 = d.length_squared();
+                if len2 <= 0.0 {
+                    continue;
+                }
+                self.grid
+                    .near_edge(pa, pb, eps, vertices.len(), &mut scratch);
+                for &v in &scratch.candidates {
+                    if v == a || v == b || self.vertex_group[v as usize] != group {
+                        continue;
+                    }
+                    let p = vertices[v as usize];
+                    let t = (p - pa).dot(d) / len2;
+                    if t <= 1e-9 || t >= 1.0 - 1e-9 {
+                        continue;
+                    }
+                    if (pa + d * t - p).length() < eps * 10.0 {
+                        out.push(TVertex { vertex: v, a, b, t });
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Buffers of [`VertexGrid::near_edge`], kept between calls.
+#[derive(Default)]
+struct Scratch {
+    /// The vertices found.
+    candidates: Vec<u32>,
+    /// The distinct cells of the points of a walk along an edge.
+    chain: Vec<Cell>,
+}
+
+type Cell = (i64, i64, i64);
+
+/// The display vertices bucketed by cubic cells: per occupied cell (in order of first
+/// appearance) a range of `members`, the vertices in increasing order.
 struct VertexGrid {
     cell: f64,
-    cells: HashMap<(i64, i64, i64), Vec<u32>>,
+    cells: FxHashMap<Cell, (u32, u32)>,
+    members: Vec<u32>,
 }
 
 impl VertexGrid {
     fn new(vertices: &[DVec3], cell: f64) -> Self {
         let mut grid = Self {
             cell,
-            cells: HashMap::new(),
+            cells: FxHashMap::default(),
+            members: vec![0; vertices.len()],
         };
-        for (v, p) in vertices.iter().enumerate() {
-            grid.cells.entry(grid.key(*p)).or_default().push(v as u32);
+        let keys: Vec<Cell> = vertices.iter().map(|p| grid.key(*p)).collect();
+        // Count per cell, then place each vertex after the cells that appeared before it.
+        let mut counts: Vec<u32> = Vec::new();
+        let slot: Vec<u32> = keys
+            .iter()
+            .map(|k| {
+                let next = counts.len() as u32;
+                let i = grid.cells.entry(*k).or_insert((next, 0)).0;
+                if i == next {
+                    counts.push(0);
+                }
+                counts[i as usize] += 1;
+                i
+            })
+            .collect();
+        let mut start = Vec::with_capacity(counts.len());
+        let mut total = 0u32;
+        for c in &counts {
+            start.push(total);
+            total += c;
+        }
+        for range in grid.cells.values_mut() {
+            let i = range.0 as usize;
+            *range = (start[i], start[i] + counts[i]);
+        }
+        for (v, &i) in slot.iter().enumerate() {
+            grid.members[start[i as usize] as usize] = v as u32;
+            start[i as usize] += 1;
         }
         grid
     }
 
-    fn key(&self, p: DVec3) -> (i64, i64, i64) {
+    fn key(&self, p: DVec3) -> Cell {
         let q = (p / self.cell).floor();
         (q.x as i64, q.y as i64, q.z as i64)
     }
 
-    /// The vertices that can lie on the edge `pa`–`pb` (of `vertex_count` in all): those in
-    /// the cells of its bounding box, or for a long edge (a large element beside small
-    /// ones) in the cells along it, or every vertex where that walk would visit more cells
-    /// than there are vertices (an edge millions of cells long: a fuzzed model at 1e32
-    /// scale walked 10^7 steps an edge and sorted 27 cells a step).
-    fn near_edge(&self, pa: DVec3, pb: DVec3, eps: f64, vertex_count: usize) -> Vec<u32> {
+    /// Appends the vertices of cell `key` to `out`.
+    fn extend(&self, key: Cell, out: &mut Vec<u32>) {
+        if let Some(&(a, b)) = self.cells.get(&key) {
+            out.extend_from_slice(&self.members[a as usize..b as usize]);
+        }
+    }
+
+    /// Puts in `scratch.candidates` the vertices that can lie on the edge `pa`–`pb` (of
+    /// `vertex_count` in all), each once: those in the cells of its bounding box, or for a
+    /// long edge (a large element beside small ones) in the cells along it, or every vertex
+    /// where that walk would visit more cells than there are vertices (an edge millions of
+    /// cells long: a fuzzed model at 1e32 scale walked 10^7 steps an edge).
+    fn near_edge(
+        &self,
+        pa: DVec3,
+        pb: DVec3,
+        eps: f64,
+        vertex_count: usize,
+        scratch: &mut Scratch,
+    ) {
+        scratch.candidates.clear();
         let (lo, hi) = (
             self.key(pa.min(pb) - DVec3::splat(eps)),
             self.key(pa.max(pb) + DVec3::splat(eps)),
@@ -291,24 +384,94 @@ impl VertexGrid {
         let box_cells = span(lo.0, hi.0) * span(lo.1, hi.1) * span(lo.2, hi.2);
         let d = pb - pa;
         let walk = (d.length_squared().sqrt() / (0.5 * self.cell)).ceil();
-        let mut candidates: Vec<u32> = Vec::new();
         if box_cells <= 64.0 {
             for x in lo.0..=hi.0 {
                 for y in lo.1..=hi.1 {
                     for z in lo.2..=hi.2 {
-                        if let Some(list) = self.cells.get(&(x, y, z)) {
-                            candidates.extend_from_slice(list);
-                        }
+                        self.extend((x, y, z), &mut scratch.candidates);
                     }
                 }
             }
         } else if 27.0 * walk > vertex_count as f64 {
-            candidates.extend(0..vertex_count as u32);
+            scratch.candidates.extend(0..vertex_count as u32);
         } else {
-            let steps = walk as usize;
-            let mut cells: Vec<(i64, i64, i64)> = Vec::new();
+            self.walk(pa, d, walk as usize, scratch);
+        }
+    }
+
+    /// The vertices of the cells within one cell (on every axis) of the cells of the points
+    /// `pa + d i / steps`, `i` = 0..=steps, each cell once. Along a segment each coordinate,
+    /// and so each coordinate of the cell, moves one way only (rounding is monotone): a
+    /// cell of the points repeats only consecutively, and a neighbour of a point's cell
+    /// already visited is a neighbour of one of the last cells before it, those within two
+    /// cells on every axis. Checking them finds the same cells as sorting and deduplicating
+    /// all 27 neighbours of every point, at a fraction of the cost.
+    fn walk(&self, pa: DVec3, d: DVec3, steps: usize, scratch: &mut Scratch) {
+        let Scratch { candidates, chain } = scratch;
+        chain.clear();
+        for i in 0..=steps {
+            let c = self.key(pa + d * (i as f64 / steps.max(1) as f64));
+            if chain.last() != Some(&c) {
+                chain.push(c);
+            }
+        }
+        let within = |p: &Cell, q: Cell, r: u64| {
+            p.0.abs_diff(q.0) <= r && p.1.abs_diff(q.1) <= r && p.2.abs_diff(q.2) <= r
+        };
+        for (i, &c) in chain.iter().enumerate() {
+            let recent = chain[..i]
+                .iter()
+                .rev()
+                .take_while(|p| within(p, c, 2))
+                .count();
+            let recent = &chain[i - recent..i];
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        let n = (c.0 + dx, c.1 + dy, c.2 + dz);
+                        if !recent.iter().any(|p| within(p, n, 1)) {
+                            self.extend(n, candidates);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Rng;
+
+    /// The walk along an edge visits the cells that sorting and deduplicating the 27
+    /// neighbours of every point's cell gives, each once (one vertex per cell of a lattice,
+    /// so vertices stand for cells), along segments of every direction and length.
+    #[test]
+    fn the_walk_visits_each_neighbour_cell_once() {
+        let n = 24;
+        let vertices: Vec<DVec3> = (0..n * n * n)
+            .map(|i| DVec3::new((i % n) as f64, (i / n % n) as f64, (i / (n * n)) as f64) + 0.5)
+            .collect();
+        let grid = VertexGrid::new(&vertices, 1.0);
+        let mut rng = Rng::new(7, 0);
+        let mut scratch = Scratch::default();
+        for i in 0..600 {
+            let mut point =
+                || DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 20.0 + 2.0;
+            let (pa, mut pb) = (point(), point());
+            // Some along a plane or an axis of the grid.
+            if i % 3 == 1 {
+                pb.y = pa.y;
+            } else if i % 3 == 2 {
+                (pb.y, pb.z) = (pa.y, pa.z);
+            }
+            let steps = ((pb - pa).length() / 0.5).ceil() as usize;
+            scratch.candidates.clear();
+            grid.walk(pa, pb - pa, steps, &mut scratch);
+            let mut cells: Vec<Cell> = Vec::new();
             for i in 0..=steps {
-                let c = self.key(pa + d * (i as f64 / steps.max(1) as f64));
+                let c = grid.key(pa + (pb - pa) * (i as f64 / steps.max(1) as f64));
                 for dx in -1..=1 {
                     for dy in -1..=1 {
                         for dz in -1..=1 {
@@ -319,12 +482,14 @@ impl VertexGrid {
             }
             cells.sort_unstable();
             cells.dedup();
-            for cell_key in cells {
-                if let Some(list) = self.cells.get(&cell_key) {
-                    candidates.extend_from_slice(list);
-                }
+            let mut expected: Vec<u32> = Vec::new();
+            for c in cells {
+                grid.extend(c, &mut expected);
             }
+            expected.sort_unstable();
+            let mut found = scratch.candidates.clone();
+            found.sort_unstable();
+            assert_eq!(found, expected, "{pa} {pb}");
         }
-        candidates
     }
 }

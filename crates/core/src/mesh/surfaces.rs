@@ -14,9 +14,10 @@
 //!   [`SMOOTH_ANGLE_DEG`] (a curved surface shades round, a box keeps its creases);
 //! - small faces of one display group are *clustered* into shooters of about one patch.
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::VecDeque;
 
 use glam::DVec3;
+use rustc_hash::{FxHashMap, FxHashSet};
 
 use crate::geometry::polygon;
 use crate::scene::Scene;
@@ -96,7 +97,7 @@ impl UnionFind {
 /// vertex.
 fn weld(scene: &Scene, diag: f64) -> Vec<Vec<u32>> {
     let weld = 1e-7 * diag;
-    let mut ids: HashMap<(i64, i64, i64), u32> = HashMap::new();
+    let mut ids: FxHashMap<(i64, i64, i64), u32> = FxHashMap::default();
     let mut welded = Vec::with_capacity(scene.faces.len());
     for f in &scene.faces {
         let w: Vec<u32> = f
@@ -114,27 +115,26 @@ fn weld(scene: &Scene, diag: f64) -> Vec<Vec<u32>> {
     welded
 }
 
-/// The pairs of faces sharing a welded edge, both ways, sorted.
+/// The pairs of faces sharing a welded edge, both ways, sorted. The undirected edges are
+/// sorted with the faces using them (no map of lists): a face's edges in order, then
+/// grouped by edge.
 fn edge_pairs(welded: &[Vec<u32>]) -> Vec<(u32, u32)> {
-    // Undirected edges → the faces using them.
-    let mut edges: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
+    let mut edges: Vec<(u32, u32, u32)> = Vec::with_capacity(welded.iter().map(Vec::len).sum());
     for (fi, w) in welded.iter().enumerate() {
         for k in 0..w.len() {
             let (a, b) = (w[k], w[(k + 1) % w.len()]);
             if a != b {
-                edges
-                    .entry((a.min(b), a.max(b)))
-                    .or_default()
-                    .push(fi as u32);
+                edges.push((a.min(b), a.max(b), fi as u32));
             }
         }
     }
+    edges.sort_unstable();
     let mut pairs: Vec<(u32, u32)> = Vec::new();
-    for list in edges.values() {
+    for list in edges.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
         // A non-manifold edge (more than two faces) joins nothing: ambiguous.
-        if list.len() == 2 && list[0] != list[1] {
-            pairs.push((list[0], list[1]));
-            pairs.push((list[1], list[0]));
+        if list.len() == 2 && list[0].2 != list[1].2 {
+            pairs.push((list[0].2, list[1].2));
+            pairs.push((list[1].2, list[0].2));
         }
     }
     pairs.sort_unstable();
@@ -184,9 +184,9 @@ impl Faces<'_> {
     /// The faces of each quantised plane and material. Coplanar faces of one material
     /// share display vertices even when they only meet at T-junctions (no shared welded
     /// edge), so each plane's faces are joined in `display_uf`.
-    fn planes(&self, display_uf: &mut UnionFind) -> HashMap<(u32, [i64; 4]), Vec<u32>> {
+    fn planes(&self, display_uf: &mut UnionFind) -> FxHashMap<(u32, [i64; 4]), Vec<u32>> {
         let (normal, centroid) = (self.normal, self.centroid);
-        let mut planes: HashMap<(u32, [i64; 4]), Vec<u32>> = HashMap::new();
+        let mut planes: FxHashMap<(u32, [i64; 4]), Vec<u32>> = FxHashMap::default();
         for (fi, f) in self.scene.faces.iter().enumerate() {
             if normal[fi] == DVec3::ZERO {
                 continue;
@@ -212,23 +212,27 @@ impl Faces<'_> {
     fn redundant(
         &self,
         welded: &[Vec<u32>],
-        planes: &HashMap<(u32, [i64; 4]), Vec<u32>>,
+        planes: &FxHashMap<(u32, [i64; 4]), Vec<u32>>,
     ) -> Vec<bool> {
         let (faces, normal, area) = (&self.scene.faces, self.normal, self.area);
         let mut redundant = vec![false; faces.len()];
-        let mut seen: HashMap<(u32, Vec<u32>), u32> = HashMap::new();
+        // Per face, its sorted vertex ids and quantised normal, all in one buffer.
+        let mut keys: Vec<u32> = Vec::with_capacity(welded.iter().map(|w| w.len() + 3).sum());
+        let mut ends = Vec::with_capacity(welded.len());
         for (fi, w) in welded.iter().enumerate() {
-            // Same vertex set, material and orientation: a duplicate.
-            let mut key = w.clone();
-            key.sort_unstable();
+            let start = keys.len();
+            keys.extend_from_slice(w);
+            keys[start..].sort_unstable();
             let q = (normal[fi] * 1e4).round();
-            key.extend([q.x as i64 as u32, q.y as i64 as u32, q.z as i64 as u32]);
-            if seen
-                .insert((faces[fi].material.0, key), fi as u32)
-                .is_some()
-            {
-                redundant[fi] = true;
-            }
+            keys.extend([q.x as i64 as u32, q.y as i64 as u32, q.z as i64 as u32]);
+            ends.push(keys.len());
+        }
+        let mut seen: FxHashSet<(u32, &[u32])> = FxHashSet::default();
+        let mut start = 0;
+        for (fi, &end) in ends.iter().enumerate() {
+            // Same vertex set, material and orientation as an earlier face: a duplicate.
+            redundant[fi] = !seen.insert((faces[fi].material.0, &keys[start..end]));
+            start = end;
         }
         for members in planes.values() {
             if members.len() < 2 || members.len() > MAX_OVERLAP_GROUP {
@@ -328,8 +332,8 @@ impl Topology {
     /// removed. `None` otherwise: the surface is then meshed face by face.
     pub fn convex_outline(&self, scene: &Scene, members: &[u32]) -> Option<Vec<DVec3>> {
         const MAX_CORNERS: usize = 64;
-        let mut directed: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut position: HashMap<u32, DVec3> = HashMap::new();
+        let mut directed: FxHashMap<(u32, u32), u32> = FxHashMap::default();
+        let mut position: FxHashMap<u32, DVec3> = FxHashMap::default();
         for &f in members {
             let w = &self.welded[f as usize];
             let v = &scene.faces[f as usize].vertices;
@@ -338,7 +342,7 @@ impl Topology {
                 position.insert(w[k], v[k]);
             }
         }
-        let mut next: HashMap<u32, u32> = HashMap::new();
+        let mut next: FxHashMap<u32, u32> = FxHashMap::default();
         for (&(a, b), &count) in &directed {
             if count != 1 || directed.contains_key(&(b, a)) {
                 if count != 1 && !directed.contains_key(&(b, a)) {
@@ -399,14 +403,17 @@ impl Topology {
     /// `radius` of its centroid, until `max_area`. Returns the clusters in seed order.
     pub fn clusters(&self, faces: &[u32], max_area: f64, radius: f64) -> Vec<Vec<u32>> {
         let cos_max = SMOOTH_ANGLE_DEG.to_radians().cos();
-        let mut eligible: HashMap<u32, bool> = faces.iter().map(|&f| (f, true)).collect();
+        let mut eligible = vec![false; self.area.len()];
+        for &f in faces {
+            eligible[f as usize] = true;
+        }
         let mut out = Vec::new();
         let mut queue = VecDeque::new();
         for &seed in faces {
-            if eligible.get(&seed) != Some(&true) {
+            if !eligible[seed as usize] {
                 continue;
             }
-            eligible.insert(seed, false);
+            eligible[seed as usize] = false;
             let s = seed as usize;
             let mut cluster = vec![seed];
             let mut total = self.area[s];
@@ -417,7 +424,7 @@ impl Topology {
                     break;
                 }
                 let fu = f as usize;
-                if eligible.get(&f) != Some(&true)
+                if !eligible[fu]
                     || self.display[fu] != self.display[s]
                     || self.normal[fu].dot(self.normal[s]) < cos_max
                     || (self.centroid[fu] - self.centroid[s]).length() > radius
@@ -425,7 +432,7 @@ impl Topology {
                 {
                     continue;
                 }
-                eligible.insert(f, false);
+                eligible[fu] = false;
                 total += self.area[fu];
                 cluster.push(f);
                 queue.extend(self.neighbours(fu).iter().copied());

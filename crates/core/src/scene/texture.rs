@@ -400,7 +400,10 @@ fn signed_area(t: [DVec2; 3]) -> f64 {
 }
 
 /// Calls `f(x, y, area)` for each unit cell [x, x + 1] × [y, y + 1] that triangle `tri`
-/// overlaps, with the area of the overlap; returns the total.
+/// overlaps, with the area of the overlap; returns the total. A cell the triangle covers
+/// is 1; any other is the triangle clipped to the cell (Sutherland–Hodgman against its
+/// sides, left, right, bottom, top). The first two clips are the same for every cell of a
+/// column, so they are made once per column.
 fn for_each_cell(tri: [DVec2; 3], mut f: impl FnMut(i64, i64, f64)) -> f64 {
     let tri = if signed_area(tri) < 0.0 {
         [tri[0], tri[2], tri[1]]
@@ -410,15 +413,25 @@ fn for_each_cell(tri: [DVec2; 3], mut f: impl FnMut(i64, i64, f64)) -> f64 {
     let lo = tri[0].min(tri[1]).min(tri[2]).floor();
     let hi = tri[0].max(tri[1]).max(tri[2]).ceil();
     let inside = |p: DVec2| (0..3).all(|i| cross(tri[(i + 1) % 3] - tri[i], p - tri[i]) >= 0.0);
+    let xs = lo.x as i64..(hi.x as i64).max(lo.x as i64 + 1);
+    let whole = Poly::triangle(&tri);
+    let mut buf = [Poly::default(), Poly::default()];
+    let columns: Vec<Option<Poly>> = xs
+        .clone()
+        .map(|x| clip_slab(&whole, 0, x as f64, &mut buf).copied())
+        .collect();
     let mut total = 0.0;
     for y in lo.y as i64..(hi.y as i64).max(lo.y as i64 + 1) {
-        for x in lo.x as i64..(hi.x as i64).max(lo.x as i64 + 1) {
+        for (x, column) in xs.clone().zip(&columns) {
             let c = DVec2::new(x as f64, y as f64);
             let corners = [c, c + DVec2::X, c + DVec2::ONE, c + DVec2::Y];
             let a = if corners.iter().all(|&p| inside(p)) {
                 1.0
             } else {
-                clipped_area(&tri, c)
+                column
+                    .as_ref()
+                    .and_then(|col| clip_slab(col, 1, c.y, &mut buf))
+                    .map_or(0.0, Poly::area)
             };
             if a > 0.0 {
                 f(x, y, a);
@@ -429,36 +442,42 @@ fn for_each_cell(tri: [DVec2; 3], mut f: impl FnMut(i64, i64, f64)) -> f64 {
     total
 }
 
-/// Area of the counter-clockwise triangle `tri` inside the unit cell whose corner is `c`
-/// (Sutherland–Hodgman against the cell's four sides).
-fn clipped_area(tri: &[DVec2; 3], c: DVec2) -> f64 {
-    let mut poly = Poly::default();
-    for &p in tri {
-        poly.push(p);
+/// `poly` clipped to the slab `lo ≤ p[axis] ≤ lo + 1` (the low side first), the clipped
+/// polygons written to `buf`; `None` when fewer than 3 corners are left.
+fn clip_slab<'a>(poly: &'a Poly, axis: usize, lo: f64, buf: &'a mut [Poly; 2]) -> Option<&'a Poly> {
+    let [low, high] = buf;
+    let poly = if poly.clip_into(axis, lo, true, low) {
+        &*low
+    } else {
+        poly
+    };
+    if poly.n < 3 {
+        return None;
     }
-    // (axis, bound, keep ≥ bound)
-    for (axis, bound, above) in [
-        (0, c.x, true),
-        (0, c.x + 1.0, false),
-        (1, c.y, true),
-        (1, c.y + 1.0, false),
-    ] {
-        poly = poly.clip(axis, bound, above);
-        if poly.n < 3 {
-            return 0.0;
-        }
-    }
-    poly.area()
+    let poly = if poly.clip_into(axis, lo + 1.0, false, high) {
+        &*high
+    } else {
+        poly
+    };
+    (poly.n >= 3).then_some(poly)
 }
 
 /// A convex polygon of at most 10 vertices (a triangle clipped by 4 lines has at most 7).
-#[derive(Default)]
+#[derive(Clone, Copy, Default)]
 struct Poly {
     p: [DVec2; 10],
     n: usize,
 }
 
 impl Poly {
+    fn triangle(tri: &[DVec2; 3]) -> Poly {
+        let mut poly = Poly::default();
+        for &p in tri {
+            poly.push(p);
+        }
+        poly
+    }
+
     fn push(&mut self, p: DVec2) {
         if self.n < self.p.len() {
             self.p[self.n] = p;
@@ -466,12 +485,18 @@ impl Poly {
         }
     }
 
-    fn clip(&self, axis: usize, bound: f64, above: bool) -> Poly {
+    /// Writes to `out` the part of `self` on the side `p[axis] ≥ bound` (`above`) or `≤`,
+    /// and returns true; returns false, leaving `out` as it was, when every corner is on
+    /// that side (the clip would give `self` itself, corner for corner).
+    fn clip_into(&self, axis: usize, bound: f64, above: bool, out: &mut Poly) -> bool {
         let d = |p: DVec2| {
             let s = p[axis] - bound;
             if above { s } else { -s }
         };
-        let mut out = Poly::default();
+        if self.p[..self.n].iter().all(|&p| d(p) >= 0.0) {
+            return false;
+        }
+        out.n = 0;
         for i in 0..self.n {
             let (a, b) = (self.p[i], self.p[(i + 1) % self.n]);
             let (da, db) = (d(a), d(b));
@@ -482,7 +507,7 @@ impl Poly {
                 out.push(a + (b - a) * (da / (da - db)));
             }
         }
-        out
+        true
     }
 
     fn area(&self) -> f64 {
