@@ -11,7 +11,9 @@
 use glam::DVec2;
 use rayon::prelude::*;
 
-use nusselt_core::scene::{Scene, texture::Texture};
+use std::sync::Arc;
+
+use nusselt_core::scene::{Material, Scene, texture::Texture};
 
 /// Largest side of a layer.
 pub const MAX_LAYER_SIZE: u32 = 1024;
@@ -27,8 +29,13 @@ pub const TEXEL_BYTES: usize = 8;
 /// uses as its diffuse map, in texture order, up to [`MAX_LAYERS`]. Alpha-only maps get
 /// none (they do not change the colour).
 pub fn diffuse_layers(scene: &Scene) -> Vec<Option<u32>> {
-    let mut used = vec![false; scene.textures.len()];
-    for m in &scene.materials {
+    layers_of(scene.textures.len(), &scene.materials)
+}
+
+/// [`diffuse_layers`] of `textures` maps used by `materials`.
+fn layers_of(textures: usize, materials: &[Material]) -> Vec<Option<u32>> {
+    let mut used = vec![false; textures];
+    for m in materials {
         if let Some(id) = m.diffuse_map
             && let Some(u) = used.get_mut(id.0 as usize)
         {
@@ -61,9 +68,14 @@ pub struct TextureLayers {
 impl TextureLayers {
     /// The scene's diffuse maps as layers; `None` when it has none.
     pub fn build(scene: &Scene) -> Option<TextureLayers> {
-        let layer_of = diffuse_layers(scene);
-        let maps: Vec<&Texture> = scene
-            .textures
+        Self::build_from(&scene.textures, &scene.materials)
+    }
+
+    /// [`TextureLayers::build`] from a scene's texture maps and materials (what a thread
+    /// of its own needs of the scene).
+    pub fn build_from(textures: &[Arc<Texture>], materials: &[Material]) -> Option<TextureLayers> {
+        let layer_of = layers_of(textures.len(), materials);
+        let maps: Vec<&Texture> = textures
             .iter()
             .zip(&layer_of)
             .filter(|(_, l)| l.is_some())
@@ -73,7 +85,7 @@ impl TextureLayers {
             return None;
         }
         let size = layer_size(&maps);
-        let alphas = alpha_sources(scene, &layer_of);
+        let alphas = alpha_sources(textures, materials, &layer_of);
         let per_layer: Vec<Vec<Vec<[f32; 4]>>> = maps
             .par_iter()
             .zip(&alphas)
@@ -134,12 +146,16 @@ fn layer_size(maps: &[&Texture]) -> u32 {
 /// Per layer, the alpha map (`map_d`) of a material that uses the layer's texture as its
 /// diffuse map: the layer's alpha is read from it, so the shader can discard the holes of
 /// a cut-out (the first such material's map when several differ).
-fn alpha_sources<'a>(scene: &'a Scene, layer_of: &[Option<u32>]) -> Vec<Option<&'a Texture>> {
+fn alpha_sources<'a>(
+    textures: &'a [Arc<Texture>],
+    materials: &[Material],
+    layer_of: &[Option<u32>],
+) -> Vec<Option<&'a Texture>> {
     let mut out = vec![None; layer_of.iter().flatten().count()];
-    for m in &scene.materials {
+    for m in materials {
         if let (Some(d), Some(a)) = (m.diffuse_map, m.alpha_map)
             && let Some(Some(layer)) = layer_of.get(d.0 as usize)
-            && let Some(t) = scene.textures.get(a.0 as usize)
+            && let Some(t) = textures.get(a.0 as usize)
         {
             out[*layer as usize].get_or_insert(t.as_ref());
         }

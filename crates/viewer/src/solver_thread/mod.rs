@@ -24,6 +24,7 @@ mod publish;
 mod ray_input;
 mod switch;
 mod teach;
+mod texture_job;
 mod worker;
 
 use std::collections::VecDeque;

@@ -18,6 +18,7 @@ use super::super::teach::step::Before;
 use super::publish::Published;
 use super::ray_input::RayInput;
 use super::teach::Teaching;
+use super::texture_job::TextureJob;
 use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
 
 /// The solver thread's state. The solve's own state is here; the teaching views'
@@ -41,6 +42,8 @@ pub(super) struct Worker {
     pub(super) reflectance_rev: u64,
     /// The current scene's diffuse maps as texture-array layers (built once per scene).
     pub(super) textures: Option<Arc<crate::textures::TextureLayers>>,
+    /// The texture array being built for the current scene (`texture_job.rs`).
+    pub(super) texture_job: Option<TextureJob>,
     pub(super) next_id: u64,
     pub(super) scene_rev: u64,
     /// The first view of the current scene (`render::view::default_camera`), chosen once
@@ -100,6 +103,7 @@ impl Worker {
             reflectance: Arc::new(Vec::new()),
             reflectance_rev: 0,
             textures: None,
+            texture_job: None,
             next_id: 1,
             scene_rev: 0,
             scene_camera: nusselt_core::scene::Camera::cornell(),
@@ -125,6 +129,7 @@ impl Worker {
         self.guarded(Some(scene.name.clone()), true, |w| w.install(scene, config));
         loop {
             self.cancel.store(false, Ordering::Relaxed);
+            self.poll_textures();
             // Drain what is queued; block only when there is nothing to shoot.
             loop {
                 let command = if self.wants_to_shoot() || self.teach_work_pending() {
@@ -139,12 +144,16 @@ impl Worker {
                     }
                     // Wake up now and then even if idle so a lost waker cannot stall
                     // anything; no work is done on these wake-ups.
-                    let wait = self.teach.wait().unwrap_or(Duration::from_millis(500));
+                    let mut wait = self.teach.wait().unwrap_or(Duration::from_millis(500));
+                    if self.texture_job.is_some() {
+                        wait = wait.min(Duration::from_millis(20));
+                    }
                     match self.rx.recv_timeout(wait) {
                         Ok(c) => c,
                         Err(RecvTimeoutError::Timeout) => {
                             // The meshing view's job reports its stage.
                             self.dirty |= self.teach.meshing();
+                            self.poll_textures();
                             continue;
                         }
                         Err(RecvTimeoutError::Disconnected) => return,
@@ -307,20 +316,10 @@ impl Worker {
                 self.scene_camera = nusselt_core::render::view::default_camera(&problem.scene);
                 self.config = config;
                 self.solver = None;
-                let started = Instant::now();
-                self.textures = crate::textures::TextureLayers::build(&problem.scene).map(Arc::new);
-                if let Some(t) = &self.textures {
-                    eprintln!(
-                        "viewer: {} texture layers of {}² ({} mips), {:.1} MB on the GPU, prepared in {:.2} s",
-                        t.layers,
-                        t.size,
-                        t.mip_levels,
-                        t.gpu_bytes() as f64 / 1e6,
-                        started.elapsed().as_secs_f64()
-                    );
-                }
-                self.build(problem, Default::default());
+                self.textures = None;
                 self.scene_rev += 1;
+                self.texture_job = TextureJob::start(&problem.scene, self.scene_rev);
+                self.build(problem, Default::default());
                 self.new_geometry();
                 self.send_event(Event::Loaded { name, source });
             }
