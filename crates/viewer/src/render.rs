@@ -103,7 +103,11 @@ pub struct ViewportResources {
 impl ViewportResources {
     /// Builds the pipelines and registers them with the renderer.
     pub fn install(render_state: &egui_wgpu::RenderState) {
-        let resources = Self::new(&render_state.device, render_state.target_format);
+        let resources = Self::new(
+            &render_state.device,
+            &render_state.queue,
+            render_state.target_format,
+        );
         render_state
             .renderer
             .write()
@@ -111,7 +115,7 @@ impl ViewportResources {
             .insert(resources);
     }
 
-    fn new(device: &wgpu::Device, target: wgpu::TextureFormat) -> Self {
+    fn new(device: &wgpu::Device, queue: &wgpu::Queue, target: wgpu::TextureFormat) -> Self {
         let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("nusselt viewport"),
             source: wgpu::ShaderSource::Wgsl(SHADER_SOURCE.into()),
@@ -140,7 +144,7 @@ impl ViewportResources {
             mipmap_filter: wgpu::MipmapFilterMode::Linear,
             ..Default::default()
         });
-        let placeholder = placeholder_texture(device);
+        let placeholder = placeholder_texture(device, queue);
         let bind_group = Self::bind_group(
             device,
             &bind_group_layout,
@@ -214,7 +218,7 @@ impl ViewportResources {
         self.textures = layers.cloned();
         let Some(t) = layers else {
             // Back to the placeholder: the old array is dropped with its bind group.
-            let placeholder = placeholder_texture(device);
+            let placeholder = placeholder_texture(device, queue);
             self.bind_group = Self::bind_group(
                 device,
                 &self.bind_group_layout,
@@ -637,20 +641,29 @@ fn line_pipeline(
 }
 
 /// The 1 × 1 texture bound while the scene has no diffuse maps (every vertex then has layer
-/// 0, whose texel the shader does not show).
-fn placeholder_texture(device: &wgpu::Device) -> wgpu::Texture {
-    device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("nusselt no diffuse maps"),
-        size: wgpu::Extent3d {
-            width: 1,
-            height: 1,
-            depth_or_array_layers: 1,
+/// 0, whose texel the shader does not show) or before its maps arrive: opaque white, so
+/// that a textured vertex drawn meanwhile shows its mean colour and is no cut-out hole.
+fn placeholder_texture(device: &wgpu::Device, queue: &wgpu::Queue) -> wgpu::Texture {
+    use wgpu::util::DeviceExt;
+    let one = half::f16::from_f32(1.0).to_bits().to_ne_bytes();
+    let texel: Vec<u8> = one.iter().copied().cycle().take(8).collect();
+    device.create_texture_with_data(
+        queue,
+        &wgpu::TextureDescriptor {
+            label: Some("nusselt no diffuse maps"),
+            size: wgpu::Extent3d {
+                width: 1,
+                height: 1,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: TEXTURE_FORMAT,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
         },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: TEXTURE_FORMAT,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    })
+        wgpu::util::TextureDataOrder::LayerMajor,
+        &texel,
+    )
 }

@@ -646,6 +646,38 @@ mod texture_tests {
     }
 
     #[test]
+    fn the_solver_thread_sends_the_texture_layers_after_the_scene() {
+        // Built on their own thread: a later snapshot of the same scene carries them,
+        // the same as built in place.
+        use crate::solver_thread::{SolverHandle, ThreadConfig};
+        use std::time::{Duration, Instant};
+        let (problem, _dir) = textured_problem("checker", 0.25);
+        let expected = TextureLayers::build(&problem.scene).expect("layers");
+        let config = ThreadConfig {
+            play: false,
+            ..Default::default()
+        };
+        let mut h =
+            SolverHandle::spawn(problem.scene.clone(), config, Box::new(|| {})).expect("spawn");
+        let deadline = Instant::now() + Duration::from_secs(60);
+        let layers = loop {
+            if let Some(s) = h.take_snapshot()
+                && let Some(t) = &s.textures
+            {
+                break t.clone();
+            }
+            assert!(Instant::now() < deadline, "no snapshot with textures");
+            std::thread::sleep(Duration::from_millis(5));
+        };
+        assert_eq!(
+            (layers.layers, layers.size, layers.mip_levels),
+            (expected.layers, expected.size, expected.mip_levels)
+        );
+        assert_eq!(layers.mips, expected.mips);
+        assert!(h.shutdown(Duration::from_secs(10)));
+    }
+
+    #[test]
     fn the_layer_read_at_the_vertex_uv_is_the_cpu_texel() {
         // What the shader samples (layer texels top row first, at (u, 1 − v), repeating)
         // equals the core's texel at the element centres, with the material's `-s 2 2`.
