@@ -5,14 +5,17 @@
 //! viewport shows it (radiance plus the display correction per drawn vertex, interpolated
 //! across each display triangle; textures and exposure left out, as they scale both images
 //! alike) from the scene's first camera, and at the end compares every such image with the
-//! one of the converged solution (relative RMS, `render::image::relative_rms`).
+//! last one: of the converged solution, or where the run ends first (`--live-seconds`), of
+//! the solution then (relative RMS, `render::image::relative_rms`; `live_summary.csv` says
+//! which by its `converged_s`).
 //!
 //! The clock starts before the model is loaded, as `nusselt view MODEL` starts; drawing a
 //! sampled snapshot (256 × 192 eye rays on the display triangles) takes this thread some
 //! 20 ms beside the solver, as the viewer's UI takes its share. The window, the GPU upload
 //! and the textures on the GPU are not part of it: docs/VIEWER.md has the frame log of the
-//! real window. Peak memory is the process's resident high-water mark for the run
-//! (`VmHWM`, reset before each model).
+//! real window. Peak memory is the process's resident high-water mark (`VmHWM`, reset
+//! before each model; memory the allocator kept from an earlier model counts again, so
+//! measure one model per process for its own peak).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -104,7 +107,7 @@ pub fn live(out: &Path, models: &[PathBuf], solver: Option<&str>, limit: f64) ->
     super::plot::write(
         &out.join("live"),
         &Plot {
-            title: "the viewer's displayed image against its converged one",
+            title: "the viewer's displayed image against its last one (converged or at the limit)",
             x_label: "seconds since start (load, mesh, solve)",
             y_label: "relative RMS image error",
             series,
