@@ -43,8 +43,9 @@ pub struct BenchArgs {
     /// `sponza`: the 263 k-triangle atrium with default flags, `nusselt render` as a child
     /// process: setup phases, shots/s, the vertex pass, peak memory, about 4 minutes;
     /// `live`: the viewer's solver thread on `--live-model` (default the Crytek atrium, the
-    /// Šibenik cathedral and the Dabrović atrium): its displayed image against its
-    /// converged one over time, `live.csv`, `live_summary.csv` and `live.svg`).
+    /// Šibenik cathedral and the Dabrović atrium): its displayed image against its last
+    /// one (converged, or at `--live-seconds`) over time, `live.csv`, `live_summary.csv`
+    /// and `live.svg`).
     #[arg(long)]
     pub only: Option<String>,
     /// Models for `live` (repeat the flag for several).
@@ -82,6 +83,16 @@ pub struct BenchArgs {
     /// With `--doc`: writes nothing, and fails where a document differs from the CSVs.
     #[arg(long, requires = "doc")]
     pub check: bool,
+}
+
+/// Creates the bench CSV `path` with its [`provenance`] lines and `header` (the column
+/// names), ready for rows.
+pub(super) fn csv_file(path: &std::path::Path, header: &str) -> Result<std::fs::File> {
+    let mut csv =
+        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+    provenance(&mut csv)?;
+    writeln!(csv, "{header}")?;
+    Ok(csv)
 }
 
 /// Writes the `# command:` and `# date:` lines every bench CSV opens with, read by

@@ -14,7 +14,7 @@ use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 
 use nusselt_core::mesh::MeshSpec;
 use nusselt_core::render::{self, Image};
@@ -43,12 +43,9 @@ pub fn cornell(out: &Path, reference_path: &Path) -> Result<()> {
     let camera = render::view::default_camera(&scene);
     let mask = render::error_mask(&scene, &camera, reference.width, reference.height);
     let path = out.join("hierarchical.csv");
-    let mut csv =
-        std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
-    super::bench::provenance(&mut csv)?;
-    writeln!(
-        csv,
-        "solver,link_tolerance,elements,steps,solve_seconds,image_error,stored_mb,peak_rss_mb,report"
+    let mut csv = super::bench::csv_file(
+        &path,
+        "solver,link_tolerance,elements,steps,solve_seconds,image_error,stored_mb,peak_rss_mb,report",
     )?;
     println!("\nhierarchical and wavelet vs shooting, Cornell box, to residual 1e-4:");
     println!(
@@ -122,12 +119,9 @@ pub fn cornell(out: &Path, reference_path: &Path) -> Result<()> {
 /// The large scenes: seconds to 1 % and to 1e-4, memory, image difference.
 pub fn large(out: &Path, cornell_reference: &Path, gallery_reference: &Path) -> Result<()> {
     let path = out.join("large.csv");
-    let mut csv =
-        std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
-    super::bench::provenance(&mut csv)?;
-    writeln!(
-        csv,
-        "scene,solver,elements,steps,seconds_to_1pc,seconds,residual,image_error,stored_mb,peak_rss_mb,report"
+    let mut csv = super::bench::csv_file(
+        &path,
+        "scene,solver,elements,steps,seconds_to_1pc,seconds,residual,image_error,stored_mb,peak_rss_mb,report",
     )?;
     println!("\nlarge scenes (each run to residual 1e-4 or {LARGE_SECONDS} s):");
     println!(

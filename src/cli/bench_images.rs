@@ -19,7 +19,7 @@ use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 
 use nusselt_core::render::{self, Image, RenderSettings, SolutionView};
 use nusselt_core::scene::{LoadOptions, Rgb, Scene};
@@ -271,10 +271,7 @@ fn gauss_seidel_rows(scene: &Scene, converged: &Converged) -> Result<Vec<Ambient
 
 fn write_ambient_csv(out: &Path, rows: &[AmbientRow]) -> Result<()> {
     let path = out.join("ambient.csv");
-    let mut csv =
-        std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
-    super::bench::provenance(&mut csv)?;
-    writeln!(csv, "variant,step,seconds,residual,image_error")?;
+    let mut csv = super::bench::csv_file(&path, "variant,step,seconds,residual,image_error")?;
     for (label, step, t, residual, e) in rows {
         writeln!(csv, "{label},{step},{t:.5},{residual:.5e},{e:.5e}")?;
     }

@@ -71,30 +71,29 @@ struct SceneOnly {
 }
 
 pub fn live(out: &Path, models: &[PathBuf], solver: Option<&str>, limit: f64) -> Result<()> {
+    if !(limit.is_finite() && limit > 0.0) {
+        bail!("--live-seconds must be a positive number, got {limit}");
+    }
+    if let Some(missing) = models.iter().find(|m| !m.is_file()) {
+        bail!(
+            "{}: no such model (pass --live-model PATH)",
+            missing.display()
+        );
+    }
     let kind = solver
         .filter(|s| *s != "auto")
         .map(|s| SolverKind::parse(s, None).with_context(|| format!("unknown solver {s}")))
         .transpose()?;
-    let mut csv = std::fs::File::create(out.join("live.csv"))?;
-    super::bench::provenance(&mut csv)?;
-    writeln!(
-        csv,
-        "model,solver,elements,seconds,steps,residual,image_error"
+    let mut csv = super::bench::csv_file(
+        &out.join("live.csv"),
+        "model,solver,elements,seconds,steps,residual,image_error",
     )?;
-    let mut summary = std::fs::File::create(out.join("live_summary.csv"))?;
-    super::bench::provenance(&mut summary)?;
-    writeln!(
-        summary,
-        "model,solver,elements,first_snapshot_s,within_5pct_s,residual_1e-3_s,converged_s,error_20s,peak_mb"
+    let mut summary = super::bench::csv_file(
+        &out.join("live_summary.csv"),
+        "model,solver,elements,first_snapshot_s,within_5pct_s,residual_1e-3_s,converged_s,error_20s,peak_mb",
     )?;
     let mut series = Vec::new();
     for model in models {
-        if !model.is_file() {
-            bail!(
-                "{}: no such model (pass --live-model PATH)",
-                model.display()
-            );
-        }
         let run = run_one(model, kind, limit)?;
         write_rows(&mut csv, &mut summary, &run)?;
         save_images(out, &run)?;

@@ -152,14 +152,10 @@ fn measure_all(setup: &Setup) -> Result<Vec<Row>> {
 /// `meshing.csv`, and the same rows as a table on stdout.
 fn write_csv_and_table(out: &Path, rows: &[Row]) -> Result<()> {
     let path = out.join("meshing.csv");
-    let mut csv = std::io::BufWriter::new(
-        std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?,
-    );
-    super::bench::provenance(&mut csv)?;
-    writeln!(
-        csv,
-        "kind,setting,elements,seconds,error,seconds_direct,error_direct"
-    )?;
+    let mut csv = std::io::BufWriter::new(super::bench::csv_file(
+        &path,
+        "kind,setting,elements,seconds,error,seconds_direct,error_direct",
+    )?);
     println!(
         "\n| meshing | setting | elements | s | error | s, direct pass | error, direct pass |"
     );

@@ -15,7 +15,7 @@ use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 
 use nusselt_core::render::pathtrace::PathTracer;
 use nusselt_core::render::{self, Image, RenderSettings};
@@ -77,14 +77,10 @@ pub fn specular(out: &Path, reference_path: &Path, seconds: f64) -> Result<()> {
     rows.extend(glossy_rows);
 
     let path = out.join("specular.csv");
-    let mut w = std::io::BufWriter::new(
-        std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?,
-    );
-    super::bench::provenance(&mut w)?;
-    writeln!(
-        w,
-        "method,setting,seconds,relative_rms,relative_rms_without_caustics"
-    )?;
+    let mut w = std::io::BufWriter::new(super::bench::csv_file(
+        &path,
+        "method,setting,seconds,relative_rms,relative_rms_without_caustics",
+    )?);
     println!(
         "\ncornell-specular, {width}×{height}, against {} (error) and the path tracer without \
          caustics, 2 × {NO_CAUSTICS_SPP} spp, noise {:.2} % (own error)",

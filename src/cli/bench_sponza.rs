@@ -31,11 +31,9 @@ pub fn sponza(out: &Path, model: &Path) -> Result<()> {
     }
     let exe = std::env::current_exe().context("finding the nusselt executable")?;
     let path = out.join("sponza.csv");
-    let mut csv = std::fs::File::create(&path)?;
-    super::bench::provenance(&mut csv)?;
-    writeln!(
-        csv,
-        "run,elements,load_s,mesh_s,textures_s,solve_s,steps,shots_per_s,unshot,render_s,total_s,peak_mb"
+    let mut csv = super::bench::csv_file(
+        &path,
+        "run,elements,load_s,mesh_s,textures_s,solve_s,steps,shots_per_s,unshot,render_s,total_s,peak_mb",
     )?;
     println!(
         "\n| atrium (default flags) | elements | load s | mesh s | textures s | solve s | steps | steps/s | unshot | render s | whole s | peak MB |"

@@ -143,11 +143,9 @@ pub fn targets(out: &Path, reference_path: &Path) -> Result<()> {
     let exe = std::env::current_exe().context("finding the nusselt executable")?;
     let image: PathBuf = out.join("targets_image.pfm");
 
-    let mut csv = std::fs::File::create(out.join("targets.csv"))?;
-    super::bench::provenance(&mut csv)?;
-    writeln!(
-        csv,
-        "kind,flags,runs,median_s,min_s,max_s,error,target_error,target_s"
+    let mut csv = super::bench::csv_file(
+        &out.join("targets.csv"),
+        "kind,flags,runs,median_s,min_s,max_s,error,target_error,target_s",
     )?;
     let radiosity = radiosity_runs(&exe, &image, &judge, &mut csv)?;
     let path = path_tracer_runs(&exe, &image, &judge, &mut csv)?;
