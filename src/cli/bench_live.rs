@@ -203,7 +203,7 @@ fn draw(s: &Snapshot) -> Image {
         for x in 0..WIDTH {
             let d = camera.ray_dir(x as f64 + 0.5, y as f64 + 0.5, WIDTH, HEIGHT);
             let Some(hit) = g
-                .bvh
+                .bvh()
                 .closest_hit(&Ray::new(camera.eye, d), 0.0, f64::INFINITY)
             else {
                 continue;

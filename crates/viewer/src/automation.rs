@@ -217,7 +217,13 @@ impl ViewerApp {
         let Some(plan) = self.auto.screenshot.clone() else {
             return;
         };
-        ctx.request_repaint();
+        // While waiting, a few checks a second (each publish repaints too): repainting every
+        // frame would take a core from the load and the solve being measured.
+        if matches!(self.shot_state, ShotState::Waiting) {
+            ctx.request_repaint_after(Duration::from_millis(100));
+        } else {
+            ctx.request_repaint();
+        }
         let since_open = self.first_frame.map_or(Duration::ZERO, |t| t.elapsed());
         if !matches!(self.shot_state, ShotState::Done) && since_open > plan.timeout {
             let steps = self.snapshot.as_ref().map_or(0, |s| s.stats.steps);

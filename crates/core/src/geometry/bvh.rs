@@ -22,7 +22,7 @@ use glam::{DVec3, Vec3};
 
 mod build;
 
-use self::build::build_rec;
+use self::build::{PARALLEL_MIN, build_tree};
 
 const BINS: usize = 12;
 const MAX_LEAF: usize = 4;
@@ -151,8 +151,7 @@ impl Bvh {
             boxes.push(b);
         }
         let mut idx: Vec<u32> = (0..n as u32).collect();
-        let mut nodes = Vec::with_capacity(n);
-        build_rec(&mut nodes, &mut idx, 0, n, &boxes, &centers);
+        let mut nodes = build_tree(&mut idx, &boxes, &centers, PARALLEL_MIN);
         drop((boxes, centers));
         nodes.shrink_to_fit();
         let mut cuts = Vec::new();

@@ -300,6 +300,11 @@ pub trait Shooting {
         problem: Problem,
         cancel: &AtomicBool,
     ) -> Result<Box<dyn Solver>, Box<Problem>>;
+    /// Takes a regional ambient term built for this solver's problem
+    /// ([`ambient::RegionalAmbient::build`] before the problem was moved in, e.g. on another
+    /// thread while the viewer built its drawing arrays), instead of building one on first
+    /// display. One built for another mesh (a different patch count) is ignored.
+    fn use_regional_ambient(&mut self, regional: ambient::RegionalAmbient);
 }
 
 /// `solver`'s solution carried onto `problem`, the same scene on a refined mesh, where the

@@ -108,6 +108,17 @@ impl Problem {
     /// Refuses a light whose power would overflow ([`SolverError::PowerOverflow`]) and the
     /// GPU hemicube without a rasteriser.
     pub fn new(scene: Scene, config: SolverConfig) -> Result<Self, SolverError> {
+        Self::new_alongside(scene, config, |_| ()).map(|(problem, ())| problem)
+    }
+
+    /// [`Problem::new`], running `beside` on the scene while it is meshed (meshing is
+    /// mostly serial: a second core can choose a camera meanwhile). `beside` runs only
+    /// once the problem's checks have passed.
+    pub fn new_alongside<T: Send>(
+        scene: Scene,
+        config: SolverConfig,
+        beside: impl FnOnce(&Scene) -> T + Send,
+    ) -> Result<(Self, T), SolverError> {
         if config.formfactor.method == FormFactorMethod::GpuHemicube
             && config.formfactor.raster.is_none()
         {
@@ -115,11 +126,17 @@ impl Problem {
         }
         check_mesh_budget(&scene, &config)?;
         let start = std::time::Instant::now();
-        let mesh = Mesh::build(&scene, &config.mesh)?;
-        let meshing = start.elapsed().as_secs_f64();
+        let (mesh, side) = rayon::join(
+            || {
+                let mesh = Mesh::build(&scene, &config.mesh);
+                (mesh, start.elapsed().as_secs_f64())
+            },
+            || beside(&scene),
+        );
+        let (mesh, meshing) = (mesh.0?, mesh.1);
         let mut problem = Self::with_mesh(scene, config, mesh)?;
         problem.setup_seconds.insert(0, ("mesh", meshing));
-        Ok(problem)
+        Ok((problem, side))
     }
 
     /// Bytes of the memory budget the run holds besides its caches: the textures and the

@@ -9,6 +9,7 @@ use nusselt_core::scene::Rgb;
 use nusselt_core::solver::Solver;
 
 use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, Stats};
+use super::texture_job::TextureJob;
 use super::worker::Worker;
 
 /// What was published, and when.
@@ -50,6 +51,21 @@ impl Worker {
         self.published.last = Some(now);
         self.dirty = false;
         (self.waker)();
+        self.after_publish();
+    }
+
+    /// What waits for a new scene's first image to be out rather than delaying it: the
+    /// picking hierarchy (else built on the UI thread at the first click) and the texture
+    /// array (on two cores its thread would slow the first image down).
+    fn after_publish(&mut self) {
+        if let Some(g) = &self.geometry {
+            g.bvh();
+        }
+        if std::mem::take(&mut self.texture_job_due)
+            && let Some(s) = &self.solver
+        {
+            self.texture_job = TextureJob::start(&s.problem().scene, self.scene_rev);
+        }
     }
 
     /// The current state, numbered as the next snapshot; `None` without a scene.

@@ -1,7 +1,8 @@
 //! The texture array built beside the solve: resampling and mip-mapping a large model's
 //! diffuse maps takes longer than meshing it (1.7 s for the Crytek atrium's 23 maps on two
 //! cores), so the first snapshot goes out untextured (each element in its texture's mean
-//! colour, as the solver sees it) and the layers follow when ready.
+//! colour, as the solver sees it) and the layers follow when ready. The job starts once that
+//! first snapshot is out: on two cores its thread would otherwise delay it.
 
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, TryRecvError};

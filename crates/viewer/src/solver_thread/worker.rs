@@ -11,6 +11,7 @@ use std::time::{Duration, Instant};
 
 use nusselt_core::mesh::MeshSpec;
 use nusselt_core::scene::{AreaLight, LoadOptions, Material, MaterialId, Rgb, Scene};
+use nusselt_core::solver::ambient::RegionalAmbient;
 use nusselt_core::solver::{Problem, Solver, SolverConfig, SolverKind};
 
 use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, vertex_reflectance};
@@ -44,6 +45,8 @@ pub(super) struct Worker {
     pub(super) textures: Option<Arc<crate::textures::TextureLayers>>,
     /// The texture array being built for the current scene (`texture_job.rs`).
     pub(super) texture_job: Option<TextureJob>,
+    /// The texture array is to be started once the current scene's first image is out.
+    pub(super) texture_job_due: bool,
     pub(super) next_id: u64,
     pub(super) scene_rev: u64,
     /// The first view of the current scene (`render::view::default_camera`), chosen once
@@ -104,6 +107,7 @@ impl Worker {
             reflectance_rev: 0,
             textures: None,
             texture_job: None,
+            texture_job_due: false,
             next_id: 1,
             scene_rev: 0,
             scene_camera: nusselt_core::scene::Camera::cornell(),
@@ -310,17 +314,26 @@ impl Worker {
     fn install(&mut self, scene: Scene, config: SolverConfig) {
         let name = scene.name.clone();
         let source = scene.source.clone();
-        match Problem::new(scene, config.clone()) {
-            Ok(problem) => {
+        let first_view = |s: &Scene| nusselt_core::render::view::default_camera(s);
+        match Problem::new_alongside(scene, config.clone(), first_view) {
+            Ok((problem, camera)) => {
                 self.loaded_materials = Arc::new(problem.scene.materials.clone());
-                self.scene_camera = nusselt_core::render::view::default_camera(&problem.scene);
                 self.config = config;
                 self.solver = None;
                 self.textures = None;
                 self.scene_rev += 1;
-                self.texture_job = TextureJob::start(&problem.scene, self.scene_rev);
+                self.texture_job = None;
+                self.texture_job_due = true;
+                let (geometry, regional) = self.prepare_view(&problem);
+                self.scene_camera = camera;
                 self.build(problem, Default::default());
-                self.new_geometry();
+                if let (Some(r), Some(s)) = (
+                    regional,
+                    self.solver.as_mut().and_then(|s| s.shooting_mut()),
+                ) {
+                    s.use_regional_ambient(r);
+                }
+                self.install_geometry(geometry);
                 self.send_event(Event::Loaded { name, source });
             }
             Err(e) => self.send_event(Event::Error(format!("{name}: {e}"))),
@@ -328,10 +341,30 @@ impl Worker {
         self.dirty = true;
     }
 
+    /// The drawing arrays and (for shooting with the regional ambient term) the regional
+    /// transport of a new problem, built side by side: on a 200 k-triangle model each takes
+    /// a few tenths of a second, and the first lit frame waits for both.
+    fn prepare_view(&mut self, problem: &Problem) -> (Geometry, Option<RegionalAmbient>) {
+        let id = self.next_id;
+        self.next_id += 1;
+        let regional =
+            matches!(self.kind, SolverKind::Shooting) && problem.config.shooting.regional_ambient;
+        rayon::join(
+            || Geometry::from_problem(id, problem),
+            || regional.then(|| RegionalAmbient::build(problem)),
+        )
+    }
+
     pub(super) fn new_geometry(&mut self) {
         let Some(solver) = &self.solver else { return };
         let g = Geometry::from_problem(self.next_id, solver.problem());
         self.next_id += 1;
+        self.install_geometry(g);
+    }
+
+    /// Makes `g` (built for the current solver's mesh) the drawn geometry.
+    fn install_geometry(&mut self, g: Geometry) {
+        let Some(solver) = &self.solver else { return };
         self.reflectance = Arc::new(vertex_reflectance(&g, &solver.problem().scene.materials));
         self.reflectance_rev += 1;
         self.geometry = Some(Arc::new(g));

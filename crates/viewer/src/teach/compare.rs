@@ -151,7 +151,7 @@ impl CompareWork {
         }
         let emission = problem.patch_emission();
         let image = ItemImage::trace(
-            &geometry.bvh,
+            geometry.bvh(),
             &geometry.triangle_element,
             camera,
             IMAGE_SIDE,

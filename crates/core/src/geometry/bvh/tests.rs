@@ -160,3 +160,42 @@ fn culling_and_front_flag() {
     );
     assert!(!bvh.any_hit(&down, 0.0, 0.5));
 }
+
+/// Subtrees built on another thread are spliced in where a serial build writes them, so
+/// the tree (nodes and triangle order) does not depend on the thread split.
+#[test]
+fn parallel_build_writes_the_serial_tree() {
+    let mut rng = Rng::new(5, 0);
+    let n = 5000;
+    let centers: Vec<DVec3> = (0..n)
+        .map(|_| DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 10.0)
+        .collect();
+    let boxes: Vec<Aabb> = centers
+        .iter()
+        .map(|&c| {
+            let h = DVec3::splat(0.05 + 0.1 * rng.next_f64());
+            Aabb {
+                min: c - h,
+                max: c + h,
+            }
+        })
+        .collect();
+    let tree = |parallel_min| {
+        let mut idx: Vec<u32> = (0..n as u32).collect();
+        let nodes = build::build_tree(&mut idx, &boxes, &centers, parallel_min);
+        let flat: Vec<_> = nodes
+            .iter()
+            .map(|n| (n.min, n.max, n.first_or_right, n.count))
+            .collect();
+        (flat, idx)
+    };
+    let serial = tree(usize::MAX);
+    let parallel = tree(64);
+    assert!(
+        serial.0.len() > n / 4,
+        "a real tree: {} nodes",
+        serial.0.len()
+    );
+    assert_eq!(serial.0, parallel.0);
+    assert_eq!(serial.1, parallel.1);
+}

@@ -2,6 +2,7 @@
 
 use std::sync::atomic::AtomicBool;
 
+use super::super::ambient::RegionalAmbient;
 use super::super::rows::RowCache;
 use super::super::{Problem, Shooting, Solver, SolverError};
 use super::ProgressiveSolver;
@@ -101,5 +102,11 @@ impl Shooting for ProgressiveSolver {
         cancel: &AtomicBool,
     ) -> Result<Box<dyn Solver>, Box<Problem>> {
         ProgressiveSolver::carry_to(self, problem, cancel).map(|s| Box::new(s) as Box<dyn Solver>)
+    }
+    fn use_regional_ambient(&mut self, regional: RegionalAmbient) {
+        if regional.patch_regions().len() == self.problem.mesh.patches.len() {
+            // Already built (a display came first): the two are the same.
+            let _ = self.regional.set(regional);
+        }
     }
 }
