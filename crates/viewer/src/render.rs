@@ -237,6 +237,13 @@ impl ViewportResources {
             );
             return 0;
         }
+        let mips = t.take_mips();
+        if mips.len() != t.mip_levels as usize {
+            // Taken by an earlier upload of this same array (not expected: the solver
+            // thread makes a new array for each scene).
+            eprintln!("viewer: the texture layers were already uploaded once; drawing untextured");
+            return 0;
+        }
         let texture = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("nusselt diffuse maps"),
             size: wgpu::Extent3d {
@@ -251,7 +258,8 @@ impl ViewportResources {
             usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
             view_formats: &[],
         });
-        for (k, texels) in t.mips.iter().enumerate() {
+        // Each level's texels are freed once queued (wgpu has copied them).
+        for (k, texels) in mips.into_iter().enumerate() {
             let side = (t.size >> k).max(1);
             queue.write_texture(
                 wgpu::TexelCopyTextureInfo {
@@ -260,7 +268,7 @@ impl ViewportResources {
                     origin: wgpu::Origin3d::ZERO,
                     aspect: wgpu::TextureAspect::All,
                 },
-                bytemuck::cast_slice(texels),
+                bytemuck::cast_slice(&texels),
                 wgpu::TexelCopyBufferLayout {
                     offset: 0,
                     bytes_per_row: Some(side * super::textures::TEXEL_BYTES as u32),

@@ -679,7 +679,7 @@ mod texture_tests {
             (layers.layers, layers.size, layers.mip_levels),
             (expected.layers, expected.size, expected.mip_levels)
         );
-        assert_eq!(layers.mips, expected.mips);
+        assert_eq!(layers.mips(), expected.mips());
         assert!(h.shutdown(Duration::from_secs(10)));
     }
 
@@ -694,11 +694,12 @@ mod texture_tests {
         let g = Geometry::from_problem(1, &problem);
         let t = g.textures.as_ref().expect("textured");
         // Bilinear with repeat at level 0, as the sampler magnifies.
+        let mips = layers.mips();
         let texel = |uv: [f32; 2]| -> Rgb {
             let n = layers.size as i64;
             let read = |x: i64, y: i64| {
                 let i = 4 * (y.rem_euclid(n) * n + x.rem_euclid(n)) as usize;
-                let c = |k: usize| half::f16::from_bits(layers.mips[0][i + k]).to_f64();
+                let c = |k: usize| half::f16::from_bits(mips[0][i + k]).to_f64();
                 Rgb::new(c(0), c(1), c(2))
             };
             let x = uv[0] as f64 * n as f64 - 0.5;

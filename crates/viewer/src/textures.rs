@@ -11,7 +11,7 @@
 use glam::DVec2;
 use rayon::prelude::*;
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use nusselt_core::scene::{Material, Scene, texture::Texture};
 
@@ -61,8 +61,11 @@ pub struct TextureLayers {
     pub layers: u32,
     /// Mip levels (size, size/2, …, 1).
     pub mip_levels: u32,
-    /// Per mip level, all layers' texels one after another (top row first), as `f16` bits.
-    pub mips: Vec<Vec<u16>>,
+    /// Per mip level, all layers' texels one after another (top row first), as `f16` bits;
+    /// taken by the upload ([`TextureLayers::take_mips`]), so the CPU copy (257 MB for the
+    /// Crytek atrium) is not kept beside the GPU's.
+    mips: Mutex<Vec<Vec<u16>>>,
+    gpu_bytes: usize,
 }
 
 impl TextureLayers {
@@ -86,32 +89,57 @@ impl TextureLayers {
         }
         let size = layer_size(&maps);
         let alphas = alpha_sources(textures, materials, &layer_of);
-        let per_layer: Vec<Vec<Vec<[f32; 4]>>> = maps
+        // Each layer's `f32` chain is turned into `f16` as soon as it is made, and each
+        // level moved into the array as it is gathered: the `f32` copy of the whole array
+        // (twice the `f16` one: 514 MB for the Crytek atrium) never exists at once.
+        let mut per_layer: Vec<Vec<Vec<u16>>> = maps
             .par_iter()
             .zip(&alphas)
-            .map(|(t, a)| mip_chain(resample(&level0(t, *a), t.width, t.height, size), size))
+            .map(|(t, a)| {
+                mip_chain(resample(&level0(t, *a), t.width, t.height, size), size)
+                    .into_iter()
+                    .map(|level| {
+                        level
+                            .iter()
+                            .flatten()
+                            .map(|&c| half::f16::from_f32(c).to_bits())
+                            .collect()
+                    })
+                    .collect()
+            })
             .collect();
         let mip_levels = per_layer[0].len() as u32;
-        let mips = (0..mip_levels as usize)
+        let mips: Vec<Vec<u16>> = (0..mip_levels as usize)
             .map(|k| {
-                per_layer
-                    .iter()
-                    .flat_map(|l| l[k].iter().flatten())
-                    .map(|&c| half::f16::from_f32(c).to_bits())
-                    .collect()
+                let mut level = Vec::with_capacity(per_layer.iter().map(|l| l[k].len()).sum());
+                for layer in &mut per_layer {
+                    level.extend_from_slice(&std::mem::take(&mut layer[k]));
+                }
+                level
             })
             .collect();
         Some(TextureLayers {
             size,
             layers: maps.len() as u32,
             mip_levels,
-            mips,
+            gpu_bytes: mips.iter().map(|m| m.len() * 2).sum(),
+            mips: Mutex::new(mips),
         })
     }
 
     /// Bytes of the array on the GPU (all layers and mips).
     pub fn gpu_bytes(&self) -> usize {
-        self.mips.iter().map(|m| m.len() * 2).sum()
+        self.gpu_bytes
+    }
+
+    /// The texels, per mip level, for the one upload of this array; empty afterwards.
+    pub fn take_mips(&self) -> Vec<Vec<u16>> {
+        std::mem::take(&mut *self.mips.lock().unwrap_or_else(|e| e.into_inner()))
+    }
+
+    /// A copy of the texels not yet taken (for tests and checks).
+    pub fn mips(&self) -> Vec<Vec<u16>> {
+        self.mips.lock().unwrap_or_else(|e| e.into_inner()).clone()
     }
 }
 
