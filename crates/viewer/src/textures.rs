@@ -65,7 +65,6 @@ pub struct TextureLayers {
     /// taken by the upload ([`TextureLayers::take_mips`]), so the CPU copy (257 MB for the
     /// Crytek atrium) is not kept beside the GPU's.
     mips: Mutex<Vec<Vec<u16>>>,
-    gpu_bytes: usize,
 }
 
 impl TextureLayers {
@@ -122,14 +121,13 @@ impl TextureLayers {
             size,
             layers: maps.len() as u32,
             mip_levels,
-            gpu_bytes: mips.iter().map(|m| m.len() * 2).sum(),
             mips: Mutex::new(mips),
         })
     }
 
     /// Bytes of the array on the GPU (all layers and mips).
     pub fn gpu_bytes(&self) -> usize {
-        self.gpu_bytes
+        array_bytes(self.size, self.layers as usize)
     }
 
     /// The texels, per mip level, for the one upload of this array; empty afterwards.
