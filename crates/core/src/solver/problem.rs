@@ -126,14 +126,14 @@ impl Problem {
         }
         check_mesh_budget(&scene, &config)?;
         let start = std::time::Instant::now();
-        let (mesh, side) = rayon::join(
+        let ((mesh, meshing), side) = rayon::join(
             || {
                 let mesh = Mesh::build(&scene, &config.mesh);
                 (mesh, start.elapsed().as_secs_f64())
             },
             || beside(&scene),
         );
-        let (mesh, meshing) = (mesh.0?, mesh.1);
+        let mesh = mesh?;
         let mut problem = Self::with_mesh(scene, config, mesh)?;
         problem.setup_seconds.insert(0, ("mesh", meshing));
         Ok((problem, side))
