@@ -4,8 +4,10 @@
 //! the whole command goes (load, meshing, textures, solve, render), shots per second, the
 //! unshot fraction reached, the vertex pass at 256², and the process's peak memory.
 //! Writes `sponza.csv`. Rows: `--seconds 10/30/60` with shooting, `--shots 0` (setup and
-//! render alone: what a slow pass or a slow meshing would show first), and the hierarchical
-//! solver to convergence.
+//! render alone: what a slow pass or a slow meshing would show first), the hierarchical
+//! solver to convergence, and the hierarchical solver under `--seconds 45/100`, whose
+//! refinement steps take 20–30 s each and whose direct-pass probe alone once took 150 s.
+//! A run with `--seconds S` whose whole command takes more than S + 10 % fails the bench.
 
 use std::io::Write;
 use std::path::Path;
@@ -14,13 +16,24 @@ use std::process::Command;
 use anyhow::{Context, Result, bail};
 
 /// One measured configuration: a label and the `render` flags after the model.
-const RUNS: [(&str, &[&str]); 5] = [
+const RUNS: [(&str, &[&str]); 7] = [
     ("setup + render only", &["--shots", "0", "--pass", "vertex"]),
     ("shooting --seconds 10", &["--seconds", "10"]),
     ("shooting --seconds 30", &["--seconds", "30"]),
     ("shooting --seconds 60", &["--seconds", "60"]),
     ("hierarchical, converged", &["--solver", "hierarchical"]),
+    (
+        "hierarchical --seconds 45",
+        &["--solver", "hierarchical", "--seconds", "45"],
+    ),
+    (
+        "hierarchical --seconds 100",
+        &["--solver", "hierarchical", "--seconds", "100"],
+    ),
 ];
+
+/// A `--seconds` run may end this much past its limit.
+const SECONDS_SLACK: f64 = 1.1;
 
 pub fn sponza(out: &Path, model: &Path) -> Result<()> {
     if !model.is_file() {
@@ -40,7 +53,9 @@ pub fn sponza(out: &Path, model: &Path) -> Result<()> {
     );
     println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     let image = out.join("sponza.png");
+    let mut late = Vec::new();
     for (label, flags) in RUNS {
+        let started = std::time::Instant::now();
         let output = Command::new("/usr/bin/time")
             .args(["-f", "PEAK_KB %M"])
             .arg(&exe)
@@ -91,7 +106,26 @@ pub fn sponza(out: &Path, model: &Path) -> Result<()> {
             f("render_seconds"),
             f("total_seconds"),
         );
+        let whole = started.elapsed().as_secs_f64();
+        if let Some(limit) = seconds_flag(flags)
+            && whole > limit * SECONDS_SLACK
+        {
+            late.push(format!("{label}: {whole:.1} s"));
+        }
     }
     eprintln!("wrote {}", path.display());
+    if !late.is_empty() {
+        bail!(
+            "past their --seconds limit (+{:.0} %): {}",
+            (SECONDS_SLACK - 1.0) * 100.0,
+            late.join(", ")
+        );
+    }
     Ok(())
+}
+
+/// The value of `--seconds` among `flags`.
+fn seconds_flag(flags: &[&str]) -> Option<f64> {
+    let at = flags.iter().position(|f| *f == "--seconds")?;
+    flags.get(at + 1)?.parse().ok()
 }

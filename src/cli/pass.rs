@@ -24,7 +24,9 @@
 //!
 //! With `--time-budget S` (or `--seconds S`, the whole command) the user asks for time:
 //! then the probe is timed and the direct pass taken when the run so far plus the probe's
-//! time scaled to the image fits S, as a deadline must.
+//! time scaled to the image fits S, as a deadline must; the preparation is not started
+//! when its counted cost passes what is left, nor the probe when a smaller scout's time
+//! says the pass cannot fit (the atrium: preparation 11 s, probe 150 s, pass 40 min).
 
 use std::time::Instant;
 
@@ -44,6 +46,9 @@ const PREP_PER_SECOND: f64 = 5e5;
 const PIXEL_PER_SECOND: f64 = 1.5e6;
 /// The probe renders 1/`PROBE_SCALE`² of the pixels.
 const PROBE_SCALE: u32 = 4;
+/// With a time budget, a scout of 1/`SCOUT_SCALE`² of the pixels is timed first, and the
+/// probe runs only if the scout says the pass may fit ([`timed`]).
+const SCOUT_SCALE: u32 = 16;
 
 /// What `--pass` and `--time-budget` ask for.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -196,7 +201,7 @@ fn counted(problem: &Problem, radiance: &[Rgb], settings: &RenderSettings) -> (C
         return vertex(problem, radiance, settings, chosen);
     }
     let direct = render::direct::Prepared::new(problem, radiance);
-    let probe = probe_settings(settings);
+    let probe = probe_settings(settings, PROBE_SCALE);
     direct.render(&probe);
     let pixels = direct.work() as f64 * pixel_scale(settings, &probe);
     let estimate = prep_seconds + pixels / PIXEL_PER_SECOND;
@@ -231,11 +236,11 @@ fn finish(
     }
 }
 
-/// The probe: 1/[`PROBE_SCALE`]² of the pixels, same camera and samples.
-fn probe_settings(settings: &RenderSettings) -> RenderSettings {
+/// A probe: 1/`scale`² of the pixels, same camera and samples.
+fn probe_settings(settings: &RenderSettings, scale: u32) -> RenderSettings {
     RenderSettings {
-        width: settings.width.div_ceil(PROBE_SCALE),
-        height: settings.height.div_ceil(PROBE_SCALE),
+        width: settings.width.div_ceil(scale),
+        height: settings.height.div_ceil(scale),
         ..*settings
     }
 }
@@ -246,9 +251,12 @@ fn pixel_scale(settings: &RenderSettings, probe: &RenderSettings) -> f64 {
 }
 
 /// `auto` with a time: the direct pass when the run so far plus the probe's time scaled to
-/// the image fits `budget`; when the run so far has used the budget already, the vertex
-/// pass without a probe (preparing the direct pass computes every light patch's row:
-/// minutes on a large mesh).
+/// the image fits `budget`. Nothing that could not fit is started: when the preparation's
+/// counted cost (at the slowest rate, [`PREP_PER_SECOND`]) passes what is left, the vertex
+/// pass without preparing (every light patch's row: minutes on a large mesh); and a scout
+/// of 1/[`SCOUT_SCALE`]² of the pixels is timed before the probe, whose 1/16 of the image
+/// would otherwise take minutes where the direct pass takes hours (the atrium's lights are
+/// thousands of sphere facets). So the run passes its budget by at most the scout.
 fn timed(
     budget: f64,
     started: Instant,
@@ -256,21 +264,41 @@ fn timed(
     radiance: &[Rgb],
     settings: &RenderSettings,
 ) -> (Chosen, Image) {
-    if started.elapsed().as_secs_f64() >= budget {
+    let prep = prep_work(problem);
+    let prep_seconds = prep / PREP_PER_SECOND;
+    let left = budget - started.elapsed().as_secs_f64();
+    if left <= 0.0 || prep_seconds > left {
+        let why = if left <= 0.0 {
+            format!("the solve used the whole {budget} s budget")
+        } else {
+            format!(
+                "the direct pass would first compute {prep:.2e} light form factors, up to {prep_seconds:.0} s, past the {left:.1} s left of the {budget} s budget"
+            )
+        };
         let chosen = Chosen {
             budget: Some(budget),
+            work: Some((prep, None)),
             reason: Some(format!(
-                "pass: vertex (the solve used the whole {budget} s budget; --time-budget or --pass direct for the direct pass)"
+                "pass: vertex ({why}; --time-budget or --pass direct for the direct pass)"
             )),
             ..Chosen::fixed(Pass::Vertex)
         };
         return vertex(problem, radiance, settings, chosen);
     }
     let direct = render::direct::Prepared::new(problem, radiance);
-    let probe = probe_settings(settings);
-    let probe_start = Instant::now();
-    direct.render(&probe);
-    let estimate = probe_start.elapsed().as_secs_f64() * pixel_scale(settings, &probe);
+    // The scout, then the probe where the scout says the pass may fit: each one's time and
+    // light evaluations scaled to the image.
+    let (mut estimate, mut pixels) = (f64::INFINITY, 0.0);
+    for scale in [SCOUT_SCALE, PROBE_SCALE] {
+        let probe = probe_settings(settings, scale);
+        let (work_before, probe_start) = (direct.work(), Instant::now());
+        direct.render(&probe);
+        estimate = probe_start.elapsed().as_secs_f64() * pixel_scale(settings, &probe);
+        pixels = (direct.work() - work_before) as f64 * pixel_scale(settings, &probe);
+        if started.elapsed().as_secs_f64() + estimate > budget {
+            break;
+        }
+    }
     let fits = started.elapsed().as_secs_f64() + estimate <= budget;
     let reason = if fits {
         format!(
@@ -281,9 +309,7 @@ fn timed(
             "pass: vertex (the direct pass would take about {estimate:.1} s, past the {budget} s budget; --time-budget or --pass direct to have it)"
         )
     };
-    let pixels = direct.work() as f64 * pixel_scale(settings, &probe);
-    let work = (prep_work(problem), pixels);
-    let chosen = Chosen::decided(fits, estimate, Some(budget), work, reason);
+    let chosen = Chosen::decided(fits, estimate, Some(budget), (prep, pixels), reason);
     finish(direct, chosen, problem, radiance, settings)
 }
 

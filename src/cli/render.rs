@@ -563,27 +563,28 @@ fn solve(args: &RenderArgs, solver: &mut dyn Solver, stop: &StopCriteria) -> Res
         None => None,
     };
     let mut log_error: Option<std::io::Error> = None;
-    let never = AtomicBool::new(false);
     let initial = solver.residual().max(1e-300);
-    run_solver(solver, stop, &never, &mut |r, s| {
-        if let Some(w) = log.as_mut()
-            && let Err(e) = writeln!(
-                w,
-                "{},{:.6},{:.6e},{:.6e}",
-                r.step,
-                r.seconds,
-                r.residual,
-                nusselt_core::solver::ambient_mean(s)
-            )
-        {
-            log_error.get_or_insert(e);
-        }
-        // Progress on a log scale from the start to the target.
-        let target = stop.residual.max(1e-12);
-        let frac =
-            ((initial / r.residual.max(1e-300)).ln() / (initial / target).ln()).clamp(0.0, 1.0);
-        pb.set_position((frac * 1000.0) as u64);
-        pb.set_message(format!("{:.2e} step {}", r.residual, r.step));
+    with_deadline(stop.max_seconds, |cancel| {
+        run_solver(solver, stop, cancel, &mut |r, s| {
+            if let Some(w) = log.as_mut()
+                && let Err(e) = writeln!(
+                    w,
+                    "{},{:.6},{:.6e},{:.6e}",
+                    r.step,
+                    r.seconds,
+                    r.residual,
+                    nusselt_core::solver::ambient_mean(s)
+                )
+            {
+                log_error.get_or_insert(e);
+            }
+            // Progress on a log scale from the start to the target.
+            let target = stop.residual.max(1e-12);
+            let frac =
+                ((initial / r.residual.max(1e-300)).ln() / (initial / target).ln()).clamp(0.0, 1.0);
+            pb.set_position((frac * 1000.0) as u64);
+            pb.set_message(format!("{:.2e} step {}", r.residual, r.step));
+        })
     });
     pb.finish_and_clear();
     if let Some(e) = log_error {
@@ -636,6 +637,30 @@ fn write_elements_csv(path: &PathBuf, problem: &Problem, radiance: &[Rgb]) -> Re
     Ok(())
 }
 
+/// Runs `work` with a flag that is set `seconds` after the start (never without), so that
+/// a solver step longer than what is left (a hierarchical refinement of the atrium takes
+/// 20–30 s) is cancelled at the deadline instead of running past it; a cancelled step
+/// leaves the solution of the last whole one.
+fn with_deadline<T>(seconds: Option<f64>, work: impl FnOnce(&AtomicBool) -> T) -> T {
+    let cancel = AtomicBool::new(false);
+    let Some(seconds) = seconds else {
+        return work(&cancel);
+    };
+    let (done, wait) = std::sync::mpsc::channel::<()>();
+    std::thread::scope(|scope| {
+        let cancel = &cancel;
+        scope.spawn(move || {
+            let limit = std::time::Duration::from_secs_f64(seconds.clamp(0.0, 1e9));
+            if let Err(std::sync::mpsc::RecvTimeoutError::Timeout) = wait.recv_timeout(limit) {
+                cancel.store(true, std::sync::atomic::Ordering::Relaxed);
+            }
+        });
+        let out = work(cancel);
+        drop(done);
+        out
+    })
+}
+
 /// Share of `--seconds` kept for the render after the solve (the vertex pass of a
 /// 263 k-triangle atrium at 256²: 2 s, 7 % of 30 s).
 const RENDER_SHARE: f64 = 0.15;
@@ -652,5 +677,34 @@ pub(super) fn max_memory_bytes(mib: Option<u64>) -> Result<usize> {
         Some(0) => bail!("--max-memory must be at least 1 (MiB)"),
         Some(m) => Ok(usize::try_from(m.saturating_mul(1 << 20)).unwrap_or(usize::MAX)),
         None => Ok(nusselt_core::budget::default_bytes()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::Ordering;
+
+    /// The flag is set once the deadline passes (a step that waits on it ends), and never
+    /// without a deadline; the work's value comes back either way.
+    #[test]
+    fn a_deadline_cancels_the_work_in_progress() {
+        let waited = with_deadline(Some(0.05), |cancel| {
+            // Bounded, so that a flag never set fails the test instead of hanging it.
+            (0..20_000)
+                .take_while(|_| {
+                    std::thread::sleep(std::time::Duration::from_millis(1));
+                    !cancel.load(Ordering::Relaxed)
+                })
+                .count()
+        });
+        assert!(waited < 20_000, "the flag was never set");
+        let unset = with_deadline(None, |cancel| {
+            std::thread::sleep(std::time::Duration::from_millis(20));
+            cancel.load(Ordering::Relaxed)
+        });
+        assert!(!unset);
+        // Work that ends first does not wait for the deadline.
+        assert_eq!(with_deadline(Some(1e6), |_| 7), 7);
     }
 }
