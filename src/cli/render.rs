@@ -646,7 +646,7 @@ fn with_deadline<T>(seconds: Option<f64>, work: impl FnOnce(&AtomicBool) -> T) -
     let Some(seconds) = seconds else {
         return work(&cancel);
     };
-    let (done, wait) = std::sync::mpsc::channel::<()>();
+    let (done, wait) = std::sync::mpsc::sync_channel::<()>(0);
     std::thread::scope(|scope| {
         let cancel = &cancel;
         scope.spawn(move || {
