@@ -125,8 +125,9 @@ pub struct RenderArgs {
     #[arg(long)]
     pub shots: Option<usize>,
     /// Seconds the whole command may take: loading, meshing, the solve and the render end
-    /// within them (the solve stops at 85 % of them, less what loading and meshing took;
-    /// `--pass auto` picks a pass that fits in the rest). What was cut is printed.
+    /// within them (the solve stops at 85 % of them, less what loading and meshing took,
+    /// cancelling a step still running then; `--pass auto` picks a pass that fits in the
+    /// rest). What was cut is printed.
     #[arg(long, allow_negative_numbers = true)]
     pub seconds: Option<f64>,
     #[arg(long, default_value_t = 1)]
