@@ -201,9 +201,7 @@ fn counted(problem: &Problem, radiance: &[Rgb], settings: &RenderSettings) -> (C
         return vertex(problem, radiance, settings, chosen);
     }
     let direct = render::direct::Prepared::new(problem, radiance);
-    let probe = probe_settings(settings, PROBE_SCALE);
-    direct.render(&probe);
-    let pixels = direct.work() as f64 * pixel_scale(settings, &probe);
+    let (_, pixels) = run_probe(&direct, settings, PROBE_SCALE);
     let estimate = prep_seconds + pixels / PIXEL_PER_SECOND;
     let fits = estimate <= DEFAULT_TIME_BUDGET;
     let reason = if fits {
@@ -243,6 +241,21 @@ fn probe_settings(settings: &RenderSettings, scale: u32) -> RenderSettings {
         height: settings.height.div_ceil(scale),
         ..*settings
     }
+}
+
+/// Renders 1/`scale`² of the pixels with `direct` ([`probe_settings`]): its seconds and
+/// light evaluations, each scaled to the whole image.
+fn run_probe(
+    direct: &render::direct::Prepared,
+    settings: &RenderSettings,
+    scale: u32,
+) -> (f64, f64) {
+    let probe = probe_settings(settings, scale);
+    let (work_before, start) = (direct.work(), Instant::now());
+    direct.render(&probe);
+    let to_image = pixel_scale(settings, &probe);
+    let seconds = start.elapsed().as_secs_f64() * to_image;
+    (seconds, (direct.work() - work_before) as f64 * to_image)
 }
 
 /// Pixels of the image over pixels of the probe.
@@ -288,22 +301,15 @@ fn timed(
     }
     let direct = render::direct::Prepared::new(problem, radiance);
     // The scout, then the probe unless the scout says the probe alone would pass the
-    // budget: each one's time and light evaluations scaled to the image. The choice is the
-    // probe's where it ran (the scout's larger pixels straddle more edges: it errs long).
-    let (mut estimate, mut pixels) = (f64::INFINITY, 0.0);
-    for scale in [SCOUT_SCALE, PROBE_SCALE] {
-        let probe = probe_settings(settings, scale);
-        if scale == PROBE_SCALE {
-            let probe_seconds = estimate / pixel_scale(settings, &probe);
-            if started.elapsed().as_secs_f64() + probe_seconds > budget {
-                break;
-            }
-        }
-        let (work_before, probe_start) = (direct.work(), Instant::now());
-        direct.render(&probe);
-        estimate = probe_start.elapsed().as_secs_f64() * pixel_scale(settings, &probe);
-        pixels = (direct.work() - work_before) as f64 * pixel_scale(settings, &probe);
-    }
+    // budget. The choice is the probe's where it ran (the scout's larger pixels straddle
+    // more edges: it errs long).
+    let scout = run_probe(&direct, settings, SCOUT_SCALE);
+    let probe_seconds = scout.0 / pixel_scale(settings, &probe_settings(settings, PROBE_SCALE));
+    let (estimate, pixels) = if started.elapsed().as_secs_f64() + probe_seconds > budget {
+        scout
+    } else {
+        run_probe(&direct, settings, PROBE_SCALE)
+    };
     let fits = started.elapsed().as_secs_f64() + estimate <= budget;
     let reason = if fits {
         format!(
