@@ -16,7 +16,15 @@
 //!   receiver shows it up to 4× more than `A/4`.
 //!
 //! Visibility is the fraction of 4 shadow rays between area-sampled points of the two nodes
-//! that arrive (16 for a partly hidden pair with a leaf on one end).
+//! that arrive (16 for a partly hidden pair with a leaf on one end), or of one ray where the
+//! link's transfer `B_j K_ij` is at most `ε/2`: one ray's standard error (1/2 of the
+//! transfer) is then within 4 rays' at the largest transfer kept (1/4 of `ε`), so the
+//! error bound per link stays that of 4 rays, at a quarter of the rays. Such a link is
+//! provisional ([`Link::provisional`]): decided again, with its full rays, once its
+//! sender's radiosity grows past that. Most links qualify: those from senders still dark
+//! (`B_j = 0`, in the first iterations most of a large scene) and many made by a split.
+//! A receiving cluster keeps 4 rays: a ray from a random point of a cluster is often
+//! blocked by the cluster's own faces, so one ray would leave a whole group dark or lit.
 //!
 //! The oracle (Hanrahan, Salzman & Aupperle 1991, "BF refinement") keeps a link when
 //! `B_j · bound_ij ≤ ε`, where `bound` is the unoccluded estimate, or where the estimate is
@@ -27,7 +35,8 @@
 //! charges those the harmonics' error and splits the receiver first. Two leaves are
 //! always linked. Known error: a kept link is off by at most about `ε` in radiosity per
 //! link times the number of links into a receiver, plus the visibility sampling error
-//! (±1/4 of a partly hidden link's transfer with 4 rays).
+//! (a standard error of at most 1/4 of a partly hidden link's transfer with 4 rays, and of
+//! at most `ε/4` for a one-ray link, whose transfer is at most `ε/2`).
 
 use std::f64::consts::PI;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -49,13 +58,40 @@ pub struct Link {
     pub sender: u32,
     /// `K_ij` with visibility.
     pub kernel: f32,
-    /// The oracle's bound on the unoccluded kernel (see the module docs).
-    pub bound: f32,
+    /// The oracle's bound on the unoccluded kernel (see the module docs); negative for a
+    /// provisional link ([`Link::provisional`]).
+    bound: f32,
+}
+
+impl Link {
+    /// A link whose kernel is final (`bound` ≥ 0).
+    pub fn new(receiver: u32, sender: u32, kernel: f32, bound: f32) -> Link {
+        Link {
+            receiver,
+            sender,
+            kernel,
+            bound: bound.abs(),
+        }
+    }
+
+    /// Whether the link's visibility is one ray, made while its transfer was at most half
+    /// the threshold: it is decided again once the sender's radiosity grows past that.
+    pub fn provisional(&self) -> bool {
+        self.bound.is_sign_negative()
+    }
+
+    /// The oracle's bound on the unoccluded kernel.
+    pub fn bound(&self) -> f32 {
+        self.bound.abs()
+    }
 }
 
 /// Shadow rays per link (more for a partly hidden pair with a leaf end).
 pub const RAYS: u32 = 4;
 pub const RAYS_PARTIAL: u32 = 16;
+/// The fraction of the threshold under which a link's transfer is estimated from one
+/// shadow ray (module docs).
+const ONE_RAY: f64 = 0.5;
 /// Points of a receiver (element centroids, stratified by area) the kernel is estimated at.
 const RECEIVER_POINTS: u32 = 4;
 /// Points of a planar inner sender its transfer is summed from.
@@ -89,6 +125,12 @@ pub(super) enum Decision {
         kernel: f64,
         bound: f64,
     },
+    /// Keep the link while its transfer stays under half the threshold (kernel with a
+    /// one-ray visibility).
+    Provisional {
+        kernel: f64,
+        bound: f64,
+    },
     SplitReceiver,
     SplitSender,
     SplitBoth,
@@ -104,7 +146,8 @@ pub struct Linker<'a> {
     /// Receivers smaller than this get a threshold raised by `reference_area / area`
     /// (see `Linker::receiver_eps`).
     pub reference_area: f64,
-    /// Planar pairs linked by flatlet blocks ([`super::flatlet`]) instead of scalar links.
+    /// Planar pairs linked by flatlet blocks ([`super::flatlet`]) instead of scalar links
+    /// (whose kernels are always final: blocks have no provisional state).
     pub flatlets: bool,
 }
 
@@ -214,12 +257,14 @@ impl Linker<'_> {
             Decision::Drop => {}
             Decision::Accept { kernel, bound } => {
                 if kernel > 0.0 || bound > 0.0 {
-                    kept.push(Link {
-                        receiver: i,
-                        sender: j,
-                        kernel: kernel as f32,
-                        bound: bound as f32,
-                    });
+                    kept.push(Link::new(i, j, kernel as f32, bound as f32));
+                }
+            }
+            Decision::Provisional { kernel, bound } => {
+                if kernel > 0.0 || bound > 0.0 {
+                    let mut link = Link::new(i, j, kernel as f32, bound as f32);
+                    link.bound = -link.bound;
+                    kept.push(link);
                 }
             }
             Decision::SplitReceiver => next.extend(ci.map(|c| (c, j))),
@@ -236,8 +281,21 @@ impl Linker<'_> {
 
     /// Whether a kept link should now be split, given the sender's radiosity.
     pub fn needs_split(&self, link: &Link, b_sender: f64, eps: f64) -> bool {
-        b_sender * link.bound as f64 > self.receiver_eps(link.receiver, eps)
+        b_sender * link.bound() as f64 > self.receiver_eps(link.receiver, eps)
             && !(self.node(link.receiver).is_leaf() && self.node(link.sender).is_leaf())
+    }
+
+    /// Whether a kept link must be decided again: it needs a split, or it is provisional
+    /// and its transfer has outgrown one ray ([`Linker::outgrew_ray`]).
+    pub fn needs_decision(&self, link: &Link, b_sender: f64, eps: f64) -> bool {
+        self.outgrew_ray(link, b_sender, eps) || self.needs_split(link, b_sender, eps)
+    }
+
+    /// Whether a provisional link's transfer, at the sender's radiosity now, has passed
+    /// the half threshold under which one shadow ray is enough.
+    pub fn outgrew_ray(&self, link: &Link, b_sender: f64, eps: f64) -> bool {
+        link.provisional()
+            && b_sender * link.bound() as f64 > ONE_RAY * self.receiver_eps(link.receiver, eps)
     }
 
     pub(super) fn decide(&self, i: u32, j: u32, b_j: f64, eps: f64) -> Decision {
@@ -312,6 +370,12 @@ impl Linker<'_> {
             let k = unoccluded.max(f64::MIN_POSITIVE);
             (k, ((spread + sender_error) / k).min(1.0))
         };
+        if b_j * kernel <= ONE_RAY * eps && !self.flatlets {
+            return Decision::Provisional {
+                kernel: unoccluded * self.visibility_ray(i, j),
+                bound: kernel,
+            };
+        }
         let accept = |visibility: Option<f64>| {
             let v = visibility.unwrap_or_else(|| self.visibility(i, j));
             let partial = v > 0.0 && v < 1.0;

@@ -20,7 +20,7 @@
 //! hierarchical system, so the residual falls like `ρ^k`.
 //!
 //! Error: that of the links kept (bounded by the tolerance, [`HierarchicalOptions::link_tolerance`]
-//! times the scene's mean emitted radiosity, per link), of the 4-ray visibility, and of
+//! times the scene's mean emitted radiosity, per link), of the visibility (4 rays, or one where a link carries at most `ε/2`), and of
 //! constant elements. The estimates err low more often than high, and summed over
 //! hundreds of links they lost light: the closed furnace box was 1–5 % off `E/(1 − ρ)` at
 //! 864–2,400 elements, the gallery's statue 18 % too dark. Each element's gathered light
@@ -37,7 +37,10 @@
 //! box at the default tolerance 2.05 % from the path-traced reference (2.66 % before the
 //! rescaling; shooting 1.78 %), wavelet 1.45 % (1.90 %); the 100 k-triangle gallery 7.2 %
 //! (8.3 %; shooting 5.5 %), its statue's mean 0.997 of the reference's (0.824), wavelet
-//! 5.5 % and 1.001 (6.4 %, 0.894). docs/BENCHMARKS.md has the times.
+//! 5.5 % and 1.001 (6.4 %, 0.894). docs/BENCHMARKS.md has the times. One-ray links
+//! ([`link::Link::provisional`]; another machine, an Intel Xeon, 2026-12-06): Cornell 1.94 →
+//! 1.99 %, gallery 8.00 → 8.33 %, for a solve 5.3 → 4.7 s and 27.3 → 19.9 s (the atrium's
+//! 81 → 53 s).
 //!
 //! [`HierarchicalOptions::link_tolerance`]: super::HierarchicalOptions::link_tolerance
 
@@ -171,22 +174,34 @@ impl HierarchicalSolver {
         self.problem.config.hierarchical.link_tolerance * sum / area.max(f64::MIN_POSITIVE)
     }
 
-    /// Refines the links against the current radiosity. `false` if cancelled.
-    fn refine(&mut self, cancel: &AtomicBool) -> bool {
+    /// The link maker on this solver's geometry; `None` for an empty hierarchy.
+    fn linker(&self) -> Option<Linker<'_>> {
+        linker(&self.problem, &self.tree, self.basis)
+    }
+
+    /// Whether a provisional link's transfer has outgrown its one ray since the links
+    /// were made.
+    fn provisional_outgrown(&self) -> bool {
+        let Some(linker) = self.linker() else {
+            return false;
+        };
+        let (b, eps) = (&self.node_b, self.threshold());
+        (self.links.par_iter())
+            .any(|l| linker.outgrew_ray(l, b[l.sender as usize].max_element(), eps))
+    }
+
+    /// Refines the links against the current radiosity (`full`), or only decides again the
+    /// provisional links whose sender is lit. `false` if cancelled.
+    fn refine(&mut self, cancel: &AtomicBool, full: bool) -> bool {
         let Some(root) = self.tree.root() else {
             return false;
         };
         let eps = self.threshold();
-        let linker = Linker {
-            mesh: &self.problem.mesh,
-            bvh: &self.problem.bvh,
-            tree: &self.tree,
-            epsilon: self.problem.epsilon,
-            seed: self.problem.config.formfactor.params.seed,
-            reference_area: self.tree.nodes[root as usize].area / REFERENCE_RECEIVERS,
-            flatlets: self.basis == Basis::Flatlet,
+        let Some(linker) = linker(&self.problem, &self.tree, self.basis) else {
+            return false;
         };
-        // The links to split become the frontier; the rest stay where they are.
+        // The links to split, and provisional ones whose sender is lit, become the
+        // frontier; the rest stay where they are.
         let mut links = std::mem::take(&mut self.links);
         let mut blocks = std::mem::take(&mut self.blocks);
         let first = self.steps == 0 && links.is_empty() && blocks.is_empty();
@@ -196,9 +211,14 @@ impl HierarchicalSolver {
             let b = &self.node_b;
             (
                 take_where(&mut links, |l| {
-                    linker.needs_split(l, b[l.sender as usize].max_element(), eps)
+                    let b_sender = b[l.sender as usize].max_element();
+                    if full {
+                        linker.needs_decision(l, b_sender, eps)
+                    } else {
+                        linker.outgrew_ray(l, b_sender, eps)
+                    }
                 }),
-                take_where(&mut blocks, |k| linker.block_needs_split(k, b, eps)),
+                take_where(&mut blocks, |k| full && linker.block_needs_split(k, b, eps)),
             )
         };
         let frontier: Vec<(u32, u32)> = if first {
@@ -221,27 +241,27 @@ impl HierarchicalSolver {
             linker.refine(frontier, &self.node_b, eps, max_links, cancel)
         else {
             // Cancelled: the links as they were.
-            links.extend(removed);
             blocks.extend(removed_blocks);
-            self.set_links(links, blocks);
+            self.set_links(merge_sorted(links, removed), blocks);
             return false;
         };
         drop((removed, removed_blocks));
         self.link_budget_reached |= capped;
         self.links_made += new_links.len() + new_blocks.len();
-        links.reserve_exact(new_links.len());
-        links.extend(new_links);
+        let mut new_links = new_links;
+        new_links.par_sort_unstable_by_key(|l| (l.receiver, l.sender));
+        let links = merge_sorted(links, new_links);
         blocks.reserve_exact(new_blocks.len());
         blocks.extend(new_blocks);
         self.set_links(links, blocks);
         true
     }
 
-    /// Stores links and blocks sorted by receiver, with their start per node.
-    fn set_links(&mut self, mut links: Vec<Link>, mut blocks: Vec<BlockLink>) {
-        links.shrink_to_fit();
+    /// Stores links (sorted by receiver and sender) and blocks (sorted here), with their
+    /// start per node.
+    fn set_links(&mut self, links: Vec<Link>, mut blocks: Vec<BlockLink>) {
+        debug_assert!(links.is_sorted_by_key(|l| (l.receiver, l.sender)));
         blocks.shrink_to_fit();
-        links.par_sort_unstable_by_key(|l| (l.receiver, l.sender));
         blocks.par_sort_unstable_by_key(|l| (l.receiver, l.sender));
         let n = self.tree.nodes.len();
         self.link_start = starts(n, links.iter().map(|l| l.receiver));
@@ -406,6 +426,45 @@ impl HierarchicalSolver {
             + self.node_b.len() * 24
             + self.tree.clusters.len() * std::mem::size_of::<directional::Sh9>()
     }
+}
+
+/// The links of two lists sorted by receiver and sender, in one sorted list of exactly
+/// their length (a few new links merged into millions: no sort of the whole).
+fn merge_sorted(a: Vec<Link>, b: Vec<Link>) -> Vec<Link> {
+    if b.is_empty() {
+        let mut a = a;
+        a.shrink_to_fit();
+        return a;
+    }
+    let key = |l: &Link| (l.receiver, l.sender);
+    let mut out = Vec::with_capacity(a.len() + b.len());
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        if key(&a[i]) <= key(&b[j]) {
+            out.push(a[i]);
+            i += 1;
+        } else {
+            out.push(b[j]);
+            j += 1;
+        }
+    }
+    out.extend_from_slice(&a[i..]);
+    out.extend_from_slice(&b[j..]);
+    out
+}
+
+/// The link maker on `problem`'s geometry and `tree`; `None` for an empty hierarchy.
+fn linker<'a>(problem: &'a Problem, tree: &'a Hierarchy, basis: Basis) -> Option<Linker<'a>> {
+    let root = tree.root()?;
+    Some(Linker {
+        mesh: &problem.mesh,
+        bvh: &problem.bvh,
+        tree,
+        epsilon: problem.epsilon,
+        seed: problem.config.formfactor.params.seed,
+        reference_area: tree.nodes[root as usize].area / REFERENCE_RECEIVERS,
+        flatlets: basis == Basis::Flatlet,
+    })
 }
 
 /// Removes and returns the items for which `split` holds (evaluated in parallel).

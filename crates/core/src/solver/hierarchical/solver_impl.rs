@@ -22,13 +22,17 @@ impl Solver for HierarchicalSolver {
         }
         let t0 = std::time::Instant::now();
         // Links follow the light: refine while the solution still changes much (the
-        // first steps), then only once the residual has fallen 8× since the last refine.
-        if self.steps < 2 || self.residual * 8.0 <= self.residual_at_refine {
-            if !self.refine(cancel) {
+        // first steps), then only once the residual has fallen 8× since the last refine;
+        // provisional links are decided anew as soon as their transfer outgrows one ray.
+        let full = self.steps < 2 || self.residual * 8.0 <= self.residual_at_refine;
+        if full || self.provisional_outgrown() {
+            if !self.refine(cancel, full) {
                 return false;
             }
             self.update_gain();
-            self.residual_at_refine = self.residual;
+            if full {
+                self.residual_at_refine = self.residual;
+            }
         }
         let t1 = std::time::Instant::now();
         self.gather_push_pull();

@@ -483,3 +483,36 @@ fn a_ball_in_a_closed_box_gathers_all_its_light() {
     );
     assert!(worst < 1e-9, "an element gathers {worst} more or less");
 }
+
+/// A link whose transfer is at most half the threshold keeps a one-ray visibility; one
+/// still in place when its sender has grown brighter would put that single ray's 0 or 1
+/// into the answer beyond the error a kept link is allowed. Every step's gather must see
+/// each provisional link within half its receiver's threshold, in the steps that refine
+/// fully and in those that do not, and never one into a cluster (whose own faces block a
+/// single ray from a random point of it half the time).
+#[test]
+fn no_provisional_link_carries_more_than_half_the_threshold() {
+    let mut s = solver("cornell", SolverConfig::default());
+    let cancel = AtomicBool::new(false);
+    let mut made = 0;
+    while s.residual() > 1e-4 && s.steps() < 200 {
+        // The radiosity the step refines against is the one its gather reads.
+        let b = s.node_b.clone();
+        assert!(s.step(&cancel));
+        let linker = s.linker().expect("a hierarchy");
+        let eps = s.threshold();
+        for l in s.links.iter().filter(|l| l.provisional()) {
+            made += 1;
+            assert!(!s.tree.nodes[l.receiver as usize].is_cluster());
+            let transfer = b[l.sender as usize].max_element() * l.bound() as f64;
+            let allowed = 0.5 * linker.receiver_eps(l.receiver, eps);
+            assert!(
+                transfer <= allowed,
+                "step {}: a provisional link carries {transfer} > {allowed}",
+                s.steps()
+            );
+        }
+    }
+    // The first refinement sees only the light lit: the walls are dark senders.
+    assert!(made > 0, "no provisional link was made");
+}

@@ -140,6 +140,23 @@ impl Linker<'_> {
         }
     }
 
+    /// Visibility from one shadow ray between area-uniform points of `i` and `j` (0 or 1):
+    /// the unbiased estimate a provisional link keeps ([`super::Link::provisional`]).
+    pub(super) fn visibility_ray(&self, i: u32, j: u32) -> f64 {
+        let (ni, nj) = (self.node(i), self.node(j));
+        let mut rng = Rng::new(hash_seed(&[self.seed, i as u64, j as u64]), 3);
+        let u = rng.next_f64();
+        let (x, nx, gx) = self.point_on(ni, u, &mut rng);
+        let u = rng.next_f64();
+        let (y, ny, gy) = self.point_on(nj, u, &mut rng);
+        let o = x + nx * self.epsilon;
+        let d = y + ny * self.epsilon - o;
+        let blocked = self
+            .bvh
+            .any_hit_except(&Ray::new(o, d), 1e-9, 1.0 - 1e-9, [gx, gy]);
+        if blocked { 0.0 } else { 1.0 }
+    }
+
     /// An area-uniform point of `node` (element chosen by `u`), its normal and the
     /// occluder group to ignore.
     pub(super) fn point_on(&self, node: &Node, u: f64, rng: &mut Rng) -> (DVec3, DVec3, u32) {
