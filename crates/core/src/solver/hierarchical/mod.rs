@@ -429,28 +429,44 @@ impl HierarchicalSolver {
 }
 
 /// The links of two lists sorted by receiver and sender, in one sorted list of exactly
-/// their length (a few new links merged into millions: no sort of the whole).
-fn merge_sorted(a: Vec<Link>, b: Vec<Link>) -> Vec<Link> {
-    if b.is_empty() {
-        let mut a = a;
-        a.shrink_to_fit();
-        return a;
-    }
+/// their length: `a` grown once and merged into from its end (a few new links merged into
+/// millions: no sort of the whole, and no second list of them all).
+fn merge_sorted(mut a: Vec<Link>, b: Vec<Link>) -> Vec<Link> {
     let key = |l: &Link| (l.receiver, l.sender);
-    let mut out = Vec::with_capacity(a.len() + b.len());
-    let (mut i, mut j) = (0, 0);
-    while i < a.len() && j < b.len() {
-        if key(&a[i]) <= key(&b[j]) {
-            out.push(a[i]);
-            i += 1;
+    let n = a.len();
+    a.reserve_exact(b.len());
+    a.extend_from_slice(&b);
+    // Fill from the back: slot `k` takes the larger of `a[i - 1]` and `b[j - 1]`; `k`
+    // never passes below `i`, so no item of `a` is overwritten before it is read.
+    let (mut i, mut j, mut k) = (n, b.len(), a.len());
+    while j > 0 {
+        k -= 1;
+        if i > 0 && key(&a[i - 1]) > key(&b[j - 1]) {
+            a[k] = a[i - 1];
+            i -= 1;
         } else {
-            out.push(b[j]);
-            j += 1;
+            a[k] = b[j - 1];
+            j -= 1;
         }
     }
-    out.extend_from_slice(&a[i..]);
-    out.extend_from_slice(&b[j..]);
-    out
+    a.shrink_to_fit();
+    a
+}
+
+#[cfg(test)]
+#[test]
+fn merged_links_are_sorted_and_complete() {
+    let l = |r: u32, s: u32| Link::new(r, s, 0.0, 0.0);
+    let keys = |v: &[Link]| v.iter().map(|l| (l.receiver, l.sender)).collect::<Vec<_>>();
+    let a = vec![l(0, 1), l(2, 0), l(2, 5), l(7, 7)];
+    let b = vec![l(0, 0), l(2, 3), l(9, 9)];
+    let m = merge_sorted(a.clone(), b.clone());
+    let mut expected = keys(&a);
+    expected.extend(keys(&b));
+    expected.sort();
+    assert_eq!(keys(&m), expected);
+    assert_eq!(keys(&merge_sorted(a.clone(), Vec::new())), keys(&a));
+    assert_eq!(keys(&merge_sorted(Vec::new(), b.clone())), keys(&b));
 }
 
 /// The link maker on `problem`'s geometry and `tree`; `None` for an empty hierarchy.
