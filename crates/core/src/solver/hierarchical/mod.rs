@@ -108,6 +108,9 @@ pub struct HierarchicalSolver {
     link_budget_reached: bool,
     refine_seconds: f64,
     gather_seconds: f64,
+    /// The regional transport of the display correction, built on first display
+    /// ([`super::ambient`]).
+    regional: std::sync::OnceLock<super::ambient::RegionalAmbient>,
 }
 
 impl HierarchicalSolver {
@@ -141,6 +144,7 @@ impl HierarchicalSolver {
             link_budget_reached: false,
             refine_seconds: 0.0,
             gather_seconds: 0.0,
+            regional: std::sync::OnceLock::new(),
         };
         s.reset();
         s

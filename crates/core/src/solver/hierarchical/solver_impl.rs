@@ -2,9 +2,14 @@
 
 use std::sync::atomic::AtomicBool;
 
+use super::super::ambient::RegionalAmbient;
 use super::super::{Problem, RowCache, Solver, SolverError};
 use super::{Basis, HierarchicalSolver};
 use crate::scene::{MaterialId, Rgb};
+
+/// The change, relative to the emitted power, under which the display correction is the
+/// classic ambient term instead of the regional one.
+pub const REGIONAL_FLOOR: f64 = 1e-3;
 
 impl Solver for HierarchicalSolver {
     fn name(&self) -> &'static str {
@@ -51,14 +56,17 @@ impl Solver for HierarchicalSolver {
         self.residual
     }
     /// The radiosity plus the light still to arrive, estimated from the last iteration's
-    /// change as the ambient term estimates it from the unshot light
-    /// ([`HierarchicalSolver::missing_irradiance`]): before the first iteration the
-    /// classic ambient term, so the first view is lit.
+    /// change as the ambient term estimates it from the unshot light: regionally
+    /// ([`HierarchicalSolver::missing_per_patch`]) where the configuration asks for it, as
+    /// for shooting; before the first iteration from the emission, so the first view is lit.
     fn display_radiance(&self) -> Vec<Rgb> {
-        let missing = self.missing_irradiance();
-        let patches = &self.problem.mesh.elements;
-        (self.radiosity.iter().zip(patches))
-            .map(|(b, e)| (*b + self.reflectance[e.patch.0 as usize] * missing).max(Rgb::ZERO))
+        let missing = self.missing_per_patch();
+        let elements = &self.problem.mesh.elements;
+        (self.radiosity.iter().zip(elements))
+            .map(|(b, e)| {
+                let p = e.patch.0 as usize;
+                (*b + self.reflectance[p] * missing[p]).max(Rgb::ZERO)
+            })
             .collect()
     }
     /// Keeps the links and continues from the current solution (later iterations refine
@@ -170,6 +178,38 @@ impl HierarchicalSolver {
         }
         let r = Rgb::ONE / (Rgb::ONE - rho / area).max(Rgb::splat(1e-6));
         r * change / area
+    }
+
+    /// The light still to arrive per unit reflectance, per patch. The change `Δ` of a
+    /// Jacobi iteration is what the next one reflects (`B_{k+1} − B_k = ρ K Δ_k`), so it
+    /// plays the part of shooting's unshot radiance: the regional term
+    /// ([`crate::solver::ambient::RegionalAmbient`], built on first use) carries it only
+    /// where it can go, so that before the first gather the light's own surroundings show
+    /// brighter than the rest. Once the change is under [`REGIONAL_FLOOR`] of the emitted
+    /// power the two estimates differ by less than that and the classic term
+    /// ([`HierarchicalSolver::missing_irradiance`]) is used (a converged solve does not
+    /// pay for the regions' rays).
+    pub fn missing_per_patch(&self) -> Vec<Rgb> {
+        let mesh = &self.problem.mesh;
+        let patches = mesh.patches.len();
+        if !self.problem.config.shooting.regional_ambient || self.residual < REGIONAL_FLOOR {
+            return vec![self.missing_irradiance(); patches];
+        }
+        let (mut change, mut area) = (vec![Rgb::ZERO; patches], vec![0.0; patches]);
+        for (e, d) in mesh.elements.iter().zip(&self.change) {
+            let p = e.patch.0 as usize;
+            change[p] += *d * e.area;
+            area[p] += e.area;
+        }
+        for (c, a) in change.iter_mut().zip(&area) {
+            if *a > 0.0 {
+                *c /= *a;
+            }
+        }
+        let regional = self
+            .regional
+            .get_or_init(|| RegionalAmbient::build(&self.problem));
+        regional.incoming(&area, &change, &self.reflectance)
     }
 
     /// After an edit of materials or lights: the patches' sources and reflectances anew,
