@@ -25,9 +25,6 @@ use nusselt_core::scene::{Camera, LoadOptions, Scene};
 use nusselt_core::solver::{ProgressiveSolver, SolverConfig, StopCriteria};
 use proptest::prelude::*;
 
-/// Seconds one solve may take in a debug build.
-const BUDGET_S: f64 = 60.0;
-
 fn model(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("tests/data/models")
@@ -57,7 +54,7 @@ fn coarse_solver(scene: Scene) -> ProgressiveSolver {
 }
 
 fn converge(s: &mut ProgressiveSolver, unshot: f64) -> f64 {
-    common::converge_within(s, unshot, BUDGET_S)
+    common::converge_to(s, unshot)
 }
 
 /// Closed: emitted = absorbed + unshot, to the row-sum error of the form factors (1 %:

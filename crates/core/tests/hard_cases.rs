@@ -22,9 +22,6 @@ use nusselt_core::mesh::{Mesh, MeshSpec};
 use nusselt_core::scene::{LoadOptions, Scene};
 use nusselt_core::solver::{ProgressiveSolver, SolverConfig};
 
-/// Seconds a solve may take in a debug build before the case counts as not converging.
-const BUDGET_S: f64 = 60.0;
-
 fn hard(name: &str) -> PathBuf {
     common::repo_root().join("tests/data/hard").join(name)
 }
@@ -46,9 +43,9 @@ fn solver(scene: Scene, element: f64, patch: f64) -> ProgressiveSolver {
     .unwrap_or_else(|e| panic!("{name}: solver: {e}"))
 }
 
-/// Shoots to `unshot` within [`BUDGET_S`]; fails with what was reached otherwise.
+/// Shoots to `unshot`; fails with what was reached otherwise.
 fn converge(s: &mut ProgressiveSolver, unshot: f64) {
-    common::converge_within(s, unshot, BUDGET_S);
+    common::converge_to(s, unshot);
 }
 
 /// Closed scene: every shot lands, so `absorbed + unshot = emitted` at every step, up to

@@ -9,7 +9,7 @@ use crate::scene::{MaterialId, Rgb};
 
 /// The change, relative to the emitted power, under which the display correction is the
 /// classic ambient term instead of the regional one.
-pub const REGIONAL_FLOOR: f64 = 1e-3;
+const REGIONAL_FLOOR: f64 = 1e-3;
 
 impl Solver for HierarchicalSolver {
     fn name(&self) -> &'static str {
@@ -185,7 +185,7 @@ impl HierarchicalSolver {
     /// plays the part of shooting's unshot radiance: the regional term
     /// ([`crate::solver::ambient::RegionalAmbient`], built on first use) carries it only
     /// where it can go, so that before the first gather the light's own surroundings show
-    /// brighter than the rest. Once the change is under [`REGIONAL_FLOOR`] of the emitted
+    /// brighter than the rest. Once the change is under `REGIONAL_FLOOR` (1e-3) of the emitted
     /// power the two estimates differ by less than that and the classic term
     /// ([`HierarchicalSolver::missing_irradiance`]) is used (a converged solve does not
     /// pay for the regions' rays).
