@@ -21,6 +21,9 @@ use super::{
 use glam::{DVec3, Vec3};
 
 mod build;
+mod packet;
+
+pub use self::packet::{PACKET, ShadowRay};
 
 use self::build::{PARALLEL_MIN, build_tree};
 

@@ -199,3 +199,63 @@ fn parallel_build_writes_the_serial_tree() {
     assert_eq!(serial.0, parallel.0);
     assert_eq!(serial.1, parallel.1);
 }
+
+/// A packet answers each ray as [`Bvh::any_hit_except`] answers it alone, whether its rays
+/// run together (a link's) or apart, with ids ignored per ray, in packets of 1 to 4.
+#[test]
+fn packet_answers_each_ray_as_alone() {
+    let mut rng = Rng::new(5, 0);
+    let mut r = || rng.next_f64();
+    let tris: Vec<TriangleInput> = (0..800)
+        .map(|i| {
+            let c = DVec3::new(r(), r(), r()) * 10.0;
+            let mut v = || c + DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
+            TriangleInput {
+                vertices: [v(), v(), v()],
+                id: i % 97,
+                cull_back: i % 3 == 0,
+                cut: None,
+            }
+        })
+        .collect();
+    let bvh = Bvh::build(&tris);
+    let mut rng = Rng::new(6, 0);
+    let mut point = |scale: f64, c: DVec3| {
+        c + DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * scale
+    };
+    let (mut blocked, mut rays_traced) = (0, 0);
+    for p in 0..3000 {
+        let n = 1 + p % PACKET;
+        // Every other packet coherent: ends within a unit of two centres.
+        let coherent = p % 2 == 0;
+        let (a, b) = (point(10.0, DVec3::ZERO), point(10.0, DVec3::ZERO));
+        let packet: Vec<ShadowRay> = (0..n)
+            .map(|k| {
+                let (o, t) = if coherent {
+                    (point(1.0, a), point(1.0, b))
+                } else {
+                    (
+                        point(12.0, DVec3::splat(-1.0)),
+                        point(12.0, DVec3::splat(-1.0)),
+                    )
+                };
+                ShadowRay {
+                    ray: Ray::new(o, t - o),
+                    ignore: [(p * 7 + k) as u32 % 97, (p * 13 + k) as u32 % 97],
+                }
+            })
+            .collect();
+        let got = bvh.any_hit_packet(&packet, 1e-9, 1.0 - 1e-9);
+        for (k, s) in packet.iter().enumerate() {
+            let alone = bvh.any_hit_except(&s.ray, 1e-9, 1.0 - 1e-9, s.ignore);
+            assert_eq!(got & (1 << k) != 0, alone, "packet {p}, ray {k} of {n}");
+            blocked += alone as usize;
+            rays_traced += 1;
+        }
+    }
+    // Both answers occur often enough for the comparison to mean something.
+    assert!(
+        blocked > rays_traced / 10 && blocked < rays_traced * 9 / 10,
+        "{blocked} of {rays_traced}"
+    );
+}

@@ -9,6 +9,7 @@ use glam::DVec3;
 use super::super::tree::Node;
 use super::{Linker, RAYS, RAYS_PARTIAL, RECEIVER_POINTS, SENDER_POINTS};
 use crate::formfactor::contour;
+use crate::geometry::bvh::{PACKET, ShadowRay};
 use crate::geometry::sampling::hash_seed;
 use crate::geometry::{Ray, Rng};
 
@@ -97,37 +98,29 @@ impl Linker<'_> {
                 RAYS_PARTIAL - RAYS
             };
             let m = if total == 0 { 2 } else { 3 };
-            for k in 0..rays {
-                // Stratified on the receiver's and the sender's area; a leaf receiver looks
-                // from its centroid, where its kernel is evaluated.
-                let (a, c) = (k % m, (k / m) % m);
-                let ui = (a as f64 + rng.next_f64()) / m as f64;
-                let uj = (c as f64 + rng.next_f64()) / m as f64;
-                let (x, nx, gx) = if ni.is_leaf() {
-                    let e = self.tree.order[ni.first as usize] as usize;
-                    let group = self.mesh.patches[self.mesh.elements[e].patch.0 as usize].occluder;
-                    (ni.centroid, ni.normal, group)
-                } else {
-                    self.point_on(ni, ui, &mut rng)
-                };
-                let (y, ny, gy) = self.point_on(nj, uj, &mut rng);
-                let o = x + nx * self.epsilon;
-                let t = y + ny * self.epsilon;
-                let d = t - o;
-                let blocked = self
-                    .bvh
-                    .any_hit_except(&Ray::new(o, d), 1e-9, 1.0 - 1e-9, [gx, gy]);
-                // Weighted by the point-to-point kernel cosθ_x cosθ_y / r² (Wallace,
-                // Elmquist & Haines 1989), as the contour rows weigh theirs.
-                let r2 = d.length_squared();
-                let w =
-                    nx.dot(d).max(0.0) * (-ny.dot(d)).max(0.0) / (r2 * r2).max(f64::MIN_POSITIVE);
-                w_total += w;
-                if !blocked {
-                    seen += 1;
-                    w_seen += w;
+            // The rays of a round are drawn first (the sampling does not depend on which
+            // are blocked) and traced in packets: they run between the same two nodes.
+            let mut k = 0;
+            while k < rays {
+                let mut packet = [ShadowRay {
+                    ray: Ray::new(DVec3::ZERO, DVec3::ZERO),
+                    ignore: [0; 2],
+                }; PACKET];
+                let mut weight = [0.0; PACKET];
+                let count = PACKET.min((rays - k) as usize);
+                for (slot, w) in packet.iter_mut().zip(&mut weight).take(count) {
+                    *slot = self.shadow_ray(ni, nj, k, m, &mut rng, w);
+                    k += 1;
                 }
-                total += 1;
+                let blocked = self.bvh.any_hit_packet(&packet[..count], 1e-9, 1.0 - 1e-9);
+                for (s, w) in weight.iter().enumerate().take(count) {
+                    w_total += w;
+                    if blocked & (1 << s) == 0 {
+                        seen += 1;
+                        w_seen += w;
+                    }
+                    total += 1;
+                }
             }
             if total >= RAYS_PARTIAL || !leaf_end || seen == 0 || seen == total {
                 break;
@@ -137,6 +130,41 @@ impl Linker<'_> {
             w_seen / w_total
         } else {
             seen as f64 / total as f64
+        }
+    }
+
+    /// The `k`-th shadow ray of a round stratified `m × m` on the receiver's and the
+    /// sender's area, and its weight: the point-to-point kernel cosθ_x cosθ_y / r²
+    /// (Wallace, Elmquist & Haines 1989), as the contour rows weigh theirs. A leaf
+    /// receiver looks from its centroid, where its kernel is evaluated.
+    fn shadow_ray(
+        &self,
+        ni: &Node,
+        nj: &Node,
+        k: u32,
+        m: u32,
+        rng: &mut Rng,
+        weight: &mut f64,
+    ) -> ShadowRay {
+        let (a, c) = (k % m, (k / m) % m);
+        let ui = (a as f64 + rng.next_f64()) / m as f64;
+        let uj = (c as f64 + rng.next_f64()) / m as f64;
+        let (x, nx, gx) = if ni.is_leaf() {
+            let e = self.tree.order[ni.first as usize] as usize;
+            let group = self.mesh.patches[self.mesh.elements[e].patch.0 as usize].occluder;
+            (ni.centroid, ni.normal, group)
+        } else {
+            self.point_on(ni, ui, rng)
+        };
+        let (y, ny, gy) = self.point_on(nj, uj, rng);
+        let o = x + nx * self.epsilon;
+        let t = y + ny * self.epsilon;
+        let d = t - o;
+        let r2 = d.length_squared();
+        *weight = nx.dot(d).max(0.0) * (-ny.dot(d)).max(0.0) / (r2 * r2).max(f64::MIN_POSITIVE);
+        ShadowRay {
+            ray: Ray::new(o, d),
+            ignore: [gx, gy],
         }
     }
 
