@@ -23,22 +23,33 @@ fn brute_closest(bvh: &Bvh, tris: &[TriangleInput], ray: &Ray) -> Option<(f64, u
     best
 }
 
-#[test]
-fn bvh_matches_brute_force() {
-    let mut rng = Rng::new(3, 0);
+/// `n` random triangles of unit size in a 10-unit cube (seeded), with ids and culling
+/// flags chosen per index.
+fn soup(
+    seed: u64,
+    n: u32,
+    id: impl Fn(u32) -> u32,
+    cull_back: impl Fn(u32) -> bool,
+) -> Vec<TriangleInput> {
+    let mut rng = Rng::new(seed, 0);
     let mut r = || rng.next_f64();
-    let tris: Vec<TriangleInput> = (0..500)
+    (0..n)
         .map(|i| {
             let c = DVec3::new(r(), r(), r()) * 10.0;
             let mut v = || c + DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
             TriangleInput {
                 vertices: [v(), v(), v()],
-                id: i,
-                cull_back: false,
+                id: id(i),
+                cull_back: cull_back(i),
                 cut: None,
             }
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn bvh_matches_brute_force() {
+    let tris = soup(3, 500, |i| i, |_| false);
     let bvh = Bvh::build(&tris);
     let mut rng = Rng::new(4, 0);
     let mut hits = 0;
@@ -204,20 +215,7 @@ fn parallel_build_writes_the_serial_tree() {
 /// run together (a link's) or apart, with ids ignored per ray, in packets of 1 to 4.
 #[test]
 fn packet_answers_each_ray_as_alone() {
-    let mut rng = Rng::new(5, 0);
-    let mut r = || rng.next_f64();
-    let tris: Vec<TriangleInput> = (0..800)
-        .map(|i| {
-            let c = DVec3::new(r(), r(), r()) * 10.0;
-            let mut v = || c + DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5);
-            TriangleInput {
-                vertices: [v(), v(), v()],
-                id: i % 97,
-                cull_back: i % 3 == 0,
-                cut: None,
-            }
-        })
-        .collect();
+    let tris = soup(5, 800, |i| i % 97, |i| i % 3 == 0);
     let bvh = Bvh::build(&tris);
     let mut rng = Rng::new(6, 0);
     let mut point = |scale: f64, c: DVec3| {
