@@ -89,6 +89,10 @@ impl Link {
 /// Shadow rays per link (more for a partly hidden pair with a leaf end).
 pub const RAYS: u32 = 4;
 pub const RAYS_PARTIAL: u32 = 16;
+/// Sender points a one-ray visibility chooses its target among where a cluster is at either
+/// end (`Linker::visibility_ray`): seen from below, a cube turns one face of six to a
+/// receiver, and 16 area-uniform points all miss it with probability (5/6)¹⁶ ≈ 5 %.
+const CANDIDATES: u32 = 16;
 /// The fraction of the threshold under which a link's transfer is estimated from one
 /// shadow ray (module docs).
 const ONE_RAY: f64 = 0.5;

@@ -516,3 +516,63 @@ fn no_provisional_link_carries_more_than_half_the_threshold() {
     // The first refinement sees only the light lit: the walls are dark senders.
     assert!(made > 0, "no provisional link was made");
 }
+
+/// A cube of separate planar faces hanging over a floor, nothing else in the scene: from any
+/// floor element every point of the cube that faces it is in view, so a link's visibility to
+/// the cube's cluster is 1. A ray to an area-uniform point of the cube lands on a face turned
+/// away (the top, a far side) about half the time and is blocked by the cube's own front,
+/// which halved such links' kernels on the atrium; the one-ray estimate chooses among
+/// `CANDIDATES` points by their kernel, and has no facing one among them with probability
+/// at most (5/6)¹⁶ ≈ 5 % (straight below), so the mean over the floor is at least 0.9.
+#[test]
+fn a_cluster_in_full_view_is_seen_by_one_ray() {
+    let mut obj = String::from(
+        "mtllib m.mtl\nusemtl floor\nv -4 -4 0\nv 4 -4 0\nv 4 4 0\nv -4 4 0\nf 1 2 3 4\nusemtl cube\n",
+    );
+    for z in [2.0, 4.0] {
+        for (x, y) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+            obj.push_str(&format!("v {x} {y} {z}\n"));
+        }
+    }
+    // Outward faces of the cube (vertices 5–12).
+    obj.push_str("f 5 8 7 6\nf 9 10 11 12\nf 5 6 10 9\nf 6 7 11 10\nf 7 8 12 11\nf 8 5 9 12\n");
+    let mtl = "newmtl floor\nKd 0.5 0.5 0.5\nKe 1 1 1\nnewmtl cube\nKd 0.5 0.5 0.5\n";
+    let scene = Scene::from_obj_str("c.obj", &obj, &[("m.mtl", mtl)], &LoadOptions::default())
+        .expect("scene");
+    let config = SolverConfig {
+        mesh: MeshSpec::element(0.5),
+        ..SolverConfig::default()
+    };
+    let s = HierarchicalSolver::new(Problem::new(scene, config).expect("problem"));
+    let linker = s.linker().expect("linker");
+    let nodes = &s.tree.nodes;
+    let elements = |n: &tree::Node| &s.tree.order[n.first as usize..(n.first + n.count) as usize];
+    let on_cube = |e: &u32| s.problem.mesh.elements[*e as usize].centroid.z > 1.0;
+    let cube_count = s
+        .problem
+        .mesh
+        .elements
+        .iter()
+        .filter(|e| e.centroid.z > 1.0)
+        .count();
+    let cube = (0..nodes.len() as u32)
+        .find(|&n| {
+            let node = &nodes[n as usize];
+            node.is_cluster()
+                && node.count as usize == cube_count
+                && elements(node).iter().all(on_cube)
+        })
+        .expect("the cube is one cluster");
+    let floor: Vec<u32> = (0..nodes.len() as u32)
+        .filter(|&n| {
+            nodes[n as usize].is_leaf() && !elements(&nodes[n as usize]).iter().any(on_cube)
+        })
+        .collect();
+    assert!(floor.len() >= 64, "{} floor leaves", floor.len());
+    let mean =
+        |f: &dyn Fn(u32) -> f64| floor.iter().map(|&i| f(i)).sum::<f64>() / floor.len() as f64;
+    let one_ray = mean(&|i| linker.visibility_ray(i, cube));
+    let rays = mean(&|i| linker.visibility(i, cube));
+    assert!(one_ray >= 0.9, "one ray: mean visibility {one_ray}");
+    assert!(rays >= 0.9, "4-16 rays: mean visibility {rays}");
+}
