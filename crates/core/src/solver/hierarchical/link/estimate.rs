@@ -176,10 +176,10 @@ impl Linker<'_> {
     /// provisional link keeps ([`super::Link::provisional`]).
     ///
     /// The receiver's point is area-uniform. So is the sender's, except where either node
-    /// is a cluster: there it is one of [`CANDIDATES`] points (each on an element drawn
-    /// uniformly from the node's, uniform on it), chosen with probability in proportion to
-    /// its element's area times its kernel `cosθ_x cosθ_y / r²` towards the receiver's point
-    /// (resampled importance sampling, Talbot, Cline & Egbert 2005). The ray then estimates
+    /// is a cluster: there it is a uniform point of one of [`CANDIDATES`] elements (drawn
+    /// uniformly from the node's), chosen with probability in proportion to the element's
+    /// area times its kernel `cosθ_x cosθ_y / r²` at its centroid towards the receiver's
+    /// point (resampled importance sampling, Talbot, Cline & Egbert 2005). The ray then estimates
     /// the kernel-weighted visibility the 4-ray estimate ([`Linker::visibility`]) measures.
     /// An area-uniform point alone falls on a face turned away from the receiver about half
     /// the time on a closed object (a column, a sphere), and its ray, blocked by the
@@ -194,20 +194,23 @@ impl Linker<'_> {
         let u = rng.next_f64();
         let mut target = self.point_on(nj, u, &mut rng);
         if ni.is_cluster() || nj.is_cluster() {
-            let mut w_sum = 0.0;
+            let (mut w_sum, mut chosen) = (0.0, None);
             for _ in 0..CANDIDATES {
                 let k = ((rng.next_f64() * nj.count as f64) as u32).min(nj.count - 1);
                 let e = &self.mesh.elements[self.tree.order[(nj.first + k) as usize] as usize];
-                let y = e.point_at(rng.next_f64(), rng.next_f64());
-                let d = y - x;
+                let d = e.centroid - x;
                 let r2 = d.length_squared();
                 let w = e.area * nx.dot(d).max(0.0) * (-e.normal.dot(d)).max(0.0)
                     / (r2 * r2).max(f64::MIN_POSITIVE);
                 w_sum += w;
                 if w > 0.0 && rng.next_f64() * w_sum < w {
-                    let group = self.mesh.patches[e.patch.0 as usize].occluder;
-                    target = (y, e.normal, group);
+                    chosen = Some(e);
                 }
+            }
+            if let Some(e) = chosen {
+                let y = e.point_at(rng.next_f64(), rng.next_f64());
+                let group = self.mesh.patches[e.patch.0 as usize].occluder;
+                target = (y, e.normal, group);
             }
         }
         let (y, ny, gy) = target;
