@@ -25,6 +25,9 @@
 //! (`B_j = 0`, in the first iterations most of a large scene) and many made by a split.
 //! A receiving cluster keeps 4 rays: a ray from a random point of a cluster is often
 //! blocked by the cluster's own faces, so one ray would leave a whole group dark or lit.
+//! A one-ray link from a cluster aims at a sender point chosen by its kernel among 16
+//! (`Linker::visibility_ray`): aimed at an area-uniform point, half its rays ended on faces
+//! turned away and the atrium came out 10 % too bright after the conservation gain.
 //!
 //! The oracle (Hanrahan, Salzman & Aupperle 1991, "BF refinement") keeps a link when
 //! `B_j · bound_ij ≤ ε`, where `bound` is the unoccluded estimate, or where the estimate is
