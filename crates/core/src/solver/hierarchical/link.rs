@@ -93,8 +93,9 @@ impl Link {
 pub const RAYS: u32 = 4;
 pub const RAYS_PARTIAL: u32 = 16;
 /// Sender points a one-ray visibility chooses its target among where a cluster is at either
-/// end (`Linker::visibility_ray`): seen from below, a cube turns one face of six to a
-/// receiver, and 16 area-uniform points all miss it with probability (5/6)¹⁶ ≈ 5 %.
+/// end (`Linker::visibility_ray`): seen from below, a cube of equal elements turns one face
+/// of six to a receiver, and 16 elements drawn uniformly all miss it with probability
+/// (5/6)¹⁶ ≈ 5 %.
 const CANDIDATES: u32 = 16;
 /// The fraction of the threshold under which a link's transfer is estimated from one
 /// shadow ray (module docs).
