@@ -164,8 +164,7 @@ impl Linker<'_> {
         let o = x + nx * self.epsilon;
         let t = y + ny * self.epsilon;
         let d = t - o;
-        let r2 = d.length_squared();
-        *weight = nx.dot(d).max(0.0) * (-ny.dot(d)).max(0.0) / (r2 * r2).max(f64::MIN_POSITIVE);
+        *weight = point_kernel(nx, ny, d);
         ShadowRay {
             ray: Ray::new(o, d),
             ignore: [gx, gy],
@@ -198,10 +197,7 @@ impl Linker<'_> {
             for _ in 0..CANDIDATES {
                 let k = ((rng.next_f64() * nj.count as f64) as u32).min(nj.count - 1);
                 let e = &self.mesh.elements[self.tree.order[(nj.first + k) as usize] as usize];
-                let d = e.centroid - x;
-                let r2 = d.length_squared();
-                let w = e.area * nx.dot(d).max(0.0) * (-e.normal.dot(d)).max(0.0)
-                    / (r2 * r2).max(f64::MIN_POSITIVE);
+                let w = e.area * point_kernel(nx, e.normal, e.centroid - x);
                 w_sum += w;
                 if w > 0.0 && rng.next_f64() * w_sum < w {
                     chosen = Some(e);
@@ -231,4 +227,11 @@ impl Linker<'_> {
         let p = e.point_at(u1, u2);
         (p, e.normal, group)
     }
+}
+
+/// The point-to-point kernel `cosθ_x cosθ_y / r²` between a point with normal `nx` and one
+/// with normal `ny` at offset `d` from it (without `1/π`; 0 where either faces away).
+fn point_kernel(nx: DVec3, ny: DVec3, d: DVec3) -> f64 {
+    let r2 = d.length_squared();
+    nx.dot(d).max(0.0) * (-ny.dot(d)).max(0.0) / (r2 * r2).max(f64::MIN_POSITIVE)
 }
