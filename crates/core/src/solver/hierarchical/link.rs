@@ -400,7 +400,7 @@ impl Linker<'_> {
         }
         if b_j * kernel * variation <= eps {
             // Small enough unless the pair is in penumbra.
-            let v = self.visibility(i, j);
+            let v = self.visibility_or_partial(i, j);
             if v == 0.0 || v == 1.0 {
                 return accept(Some(v));
             }
@@ -449,7 +449,11 @@ impl Linker<'_> {
         if b_j * kb * variation > eps {
             return split;
         }
-        let v = self.visibility(i, j);
+        let v = if b_j * kb > eps {
+            self.visibility_or_partial(i, j)
+        } else {
+            self.visibility(i, j)
+        };
         let partial = v > 0.0 && v < 1.0;
         if partial && b_j * kb > eps {
             return split;

@@ -85,6 +85,19 @@ impl Linker<'_> {
 
     /// Fraction of shadow rays between area-sampled points of `i` and `j` that arrive.
     pub(in crate::solver::hierarchical) fn visibility(&self, i: u32, j: u32) -> f64 {
+        self.visibility_rounds(i, j, false)
+    }
+
+    /// [`Linker::visibility`] for a caller that splits a partly hidden pair: where the
+    /// first round of rays already finds the pair partly hidden, that round's estimate,
+    /// without the further rays a partly hidden leaf pair gets. Further rounds cannot make
+    /// a partial estimate whole (the weights seen and blocked both stay positive), so the
+    /// caller's decision is the same, at a quarter of the rays.
+    pub(super) fn visibility_or_partial(&self, i: u32, j: u32) -> f64 {
+        self.visibility_rounds(i, j, true)
+    }
+
+    fn visibility_rounds(&self, i: u32, j: u32, stop_if_partial: bool) -> f64 {
         let (ni, nj) = (self.node(i), self.node(j));
         let mut rng = Rng::new(hash_seed(&[self.seed, i as u64, j as u64]), 2);
         let leaf_end = ni.is_leaf() || nj.is_leaf();
@@ -122,7 +135,14 @@ impl Linker<'_> {
                     total += 1;
                 }
             }
-            if total >= RAYS_PARTIAL || !leaf_end || seen == 0 || seen == total {
+            let v = w_seen / w_total; // NaN (not partial) while no weight is drawn
+            let partial = v > 0.0 && v < 1.0;
+            if total >= RAYS_PARTIAL
+                || !leaf_end
+                || seen == 0
+                || seen == total
+                || (stop_if_partial && partial)
+            {
                 break;
             }
         }
