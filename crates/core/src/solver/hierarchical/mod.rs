@@ -163,6 +163,11 @@ impl HierarchicalSolver {
         self.tree.nodes.len()
     }
 
+    /// The scalar links, sorted by receiver and then sender.
+    pub fn links(&self) -> &[Link] {
+        &self.links
+    }
+
     pub fn hierarchy(&self) -> &Hierarchy {
         &self.tree
     }
