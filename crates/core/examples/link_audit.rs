@@ -1,6 +1,6 @@
 //! Checks a hierarchical solve's link kernels against rays, by kind of link: for random
 //! elements of one material, cosine-weighted rays from the element against a hierarchy of
-//! the mesh's own elements; a ray that meets an element's front is credited to the link
+//! the mesh's display triangles; a ray that meets an element's front is credited to the link
 //! (into the element or one of its ancestors) whose sender holds that element, so each
 //! link's share of the rays is the kernel it should have. Also splits what the links into
 //! planar inner nodes miss by whether the two nodes' bounding spheres overlap.
@@ -11,7 +11,6 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
-use nusselt_core::geometry::bvh::{Bvh, TriangleInput};
 use nusselt_core::geometry::sampling::cosine_hemisphere;
 use nusselt_core::geometry::{Ray, Rng};
 use nusselt_core::scene::{LoadOptions, Scene};
@@ -37,16 +36,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for _ in 0..steps {
         solver.step(&cancel);
     }
-    let (problem, tree, links) = (solver.problem(), solver.hierarchy(), solver.links());
+    let (problem, tree) = (solver.problem(), solver.hierarchy());
     let mesh = &problem.mesh;
-    let bvh = element_bvh(problem);
-    let mut start = vec![0usize; tree.nodes.len() + 1];
-    for l in links {
-        start[l.receiver as usize + 1] += 1;
-    }
-    for i in 0..tree.nodes.len() {
-        start[i + 1] += start[i];
-    }
+    // Display triangles know their element, and carry the scene's cut-outs as the solve's
+    // blockers do.
+    let bvh = mesh.display_bvh(&problem.scene, false);
+    let element_of = |triangle: u32| mesh.triangle_element[triangle as usize].0 as usize;
     let of_material: Vec<usize> = (0..mesh.elements.len())
         .filter(|&k| {
             let patch = &mesh.patches[mesh.elements[k].patch.0 as usize];
@@ -69,9 +64,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             chain.push(a);
             a = tree.parent[a as usize];
         }
-        let into: Vec<_> = (chain.iter())
-            .flat_map(|&a| &links[start[a as usize]..start[a as usize + 1]])
-            .collect();
+        let into: Vec<_> = (chain.iter()).flat_map(|&a| solver.links_into(a)).collect();
         let mut hits = vec![0usize; into.len()];
         for _ in 0..RAYS {
             let x = e.point_at(rng.next_f64(), rng.next_f64());
@@ -83,12 +76,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ) else {
                 continue;
             };
-            if mesh.elements[h.id as usize].normal.dot(d) >= 0.0 {
+            let hit = element_of(h.id);
+            if mesh.elements[hit].normal.dot(d) >= 0.0 {
                 back += 1.0;
                 continue;
             }
             front += 1.0;
-            let at = tree.nodes[tree.leaf[h.id as usize] as usize].first;
+            let at = tree.nodes[tree.leaf[hit] as usize].first;
             let mut credited = false;
             for (m, l) in into.iter().enumerate() {
                 let s = &tree.nodes[l.sender as usize];
@@ -156,23 +150,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         far_missing / n
     );
     Ok(())
-}
-
-/// A hierarchy over the mesh's elements, each triangle's id its element's.
-fn element_bvh(problem: &Problem) -> Bvh {
-    let mut tris = Vec::new();
-    for (k, e) in problem.mesh.elements.iter().enumerate() {
-        let c = e.corners();
-        for t in 1..c.len() - 1 {
-            tris.push(TriangleInput {
-                vertices: [c[0], c[t], c[t + 1]],
-                id: k as u32,
-                cull_back: false,
-                cut: None,
-            });
-        }
-    }
-    Bvh::build(&tris)
 }
 
 fn kind(receiver: &Node, sender: &Node) -> &'static str {

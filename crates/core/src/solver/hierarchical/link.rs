@@ -449,13 +449,15 @@ impl Linker<'_> {
         if b_j * kb * variation > eps {
             return split;
         }
-        let v = if b_j * kb > eps {
+        // Past the threshold a partly hidden pair splits, so one round of rays decides it.
+        let split_if_partial = b_j * kb > eps;
+        let v = if split_if_partial {
             self.visibility_or_partial(i, j)
         } else {
             self.visibility(i, j)
         };
         let partial = v > 0.0 && v < 1.0;
-        if partial && b_j * kb > eps {
+        if partial && split_if_partial {
             return split;
         }
         Decision::Accept {

@@ -163,9 +163,13 @@ impl HierarchicalSolver {
         self.tree.nodes.len()
     }
 
-    /// The scalar links, sorted by receiver and then sender.
-    pub fn links(&self) -> &[Link] {
-        &self.links
+    /// The scalar links into `node`, sorted by sender (none before the first step).
+    pub fn links_into(&self, node: u32) -> &[Link] {
+        let n = node as usize;
+        match (self.link_start.get(n), self.link_start.get(n + 1)) {
+            (Some(&a), Some(&b)) => &self.links[a as usize..b as usize],
+            _ => &[],
+        }
     }
 
     pub fn hierarchy(&self) -> &Hierarchy {
