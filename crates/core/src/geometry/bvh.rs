@@ -27,7 +27,7 @@ pub use self::packet::{PACKET, ShadowRay};
 
 use self::build::{PARALLEL_MIN, build_tree};
 
-const BINS: usize = 12;
+const BINS: usize = 32;
 const MAX_LEAF: usize = 4;
 
 #[derive(Clone, Copy, Debug)]
