@@ -31,6 +31,7 @@ use crate::scene::Rgb;
 
 use super::{Image, RenderSettings, SolutionView};
 
+mod many;
 mod pixels;
 pub use pixels::render;
 
@@ -55,7 +56,10 @@ struct Light {
 
 /// The scene's lights and the visibility structure of the solve.
 pub struct DirectLight<'a> {
+    /// Emitting faces evaluated one by one.
     lights: Vec<Light>,
+    /// Connected emitting faces evaluated together ([`many`]).
+    groups: Vec<many::FacetGroup>,
     /// The scene's suns and point lights, evaluated per pixel with one shadow ray each.
     punctual: Vec<crate::scene::Light>,
     /// Their light through windows, as the solve sees it.
@@ -72,6 +76,27 @@ impl<'a> DirectLight<'a> {
     /// BVH ([`crate::solver::Problem::bvh`], ids `mesh.face_occluder`) and windows.
     pub fn new(problem: &'a crate::solver::Problem) -> Self {
         let (scene, mesh) = (&problem.scene, &problem.mesh);
+        let emitting: Vec<usize> = (0..scene.faces.len())
+            .filter(|&k| scene.materials[scene.faces[k].material.0 as usize].is_emitter())
+            .collect();
+        let faces: Vec<many::EmittingFace> = emitting
+            .iter()
+            .map(|&k| many::EmittingFace {
+                vertices: &scene.faces[k].vertices,
+                emission: scene.materials[scene.faces[k].material.0 as usize].emission,
+                occluder: mesh.face_occluder[k],
+            })
+            .collect();
+        let mut groups = Vec::new();
+        let mut single = vec![false; scene.faces.len()];
+        for members in many::group_faces(&faces) {
+            if members.len() >= many::MANY_FACETS {
+                let refs: Vec<&many::EmittingFace> = members.iter().map(|&i| &faces[i]).collect();
+                groups.push(many::FacetGroup::new(&refs));
+            } else {
+                members.iter().for_each(|&i| single[emitting[i]] = true);
+            }
+        }
         let lights = scene
             .faces
             .iter()
@@ -79,7 +104,7 @@ impl<'a> DirectLight<'a> {
             .filter_map(|(k, f)| {
                 let m = &scene.materials[f.material.0 as usize];
                 let normal = polygon::normal(&f.vertices)?;
-                if !m.is_emitter() {
+                if !single[k] {
                     return None;
                 }
                 let triangles: Vec<[DVec3; 3]> = polygon::triangulate(&f.vertices)
@@ -113,6 +138,7 @@ impl<'a> DirectLight<'a> {
         };
         Self {
             lights,
+            groups,
             punctual,
             glass,
             blockers: &problem.bvh,
@@ -240,6 +266,10 @@ impl<'a> DirectLight<'a> {
             if all > 0.0 {
                 sum += l.emission * (f * seen / all);
             }
+        }
+        let at = many::Receiver { p, n, origin, own };
+        for g in &self.groups {
+            sum += g.emission * g.visible_factor(&at, self.blockers, rng, work);
         }
         sum
     }
