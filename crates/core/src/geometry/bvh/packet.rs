@@ -9,9 +9,9 @@
 //! tested at a node only if it passed every box above it (the mask carried on the stack),
 //! and against a triangle only in a leaf whose box it passed, with the same `f32` tests.
 
-use super::{Bvh, intersect, slab};
+use super::{Bvh, intersect};
 use crate::geometry::Ray;
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 /// Most rays in one packet.
 pub const PACKET: usize = 4;
@@ -45,6 +45,7 @@ impl Bvh {
             inv[k] = d[k].recip();
         }
         let (t_min, t_max) = (t_min as f32, t_max as f32);
+        let lanes = Lanes::new(&o[..n], &inv[..n]);
         let all = ((1u16 << n) - 1) as u8;
         let mut blocked = 0u8;
         // Each entry: a node and the rays that passed every box above it.
@@ -53,13 +54,7 @@ impl Bvh {
         let (mut node, mut mask) = (0u32, all);
         loop {
             let nd = &self.nodes[node as usize];
-            let mut pass = 0u8;
-            for k in 0..n {
-                let bit = 1 << k;
-                if mask & !blocked & bit != 0 && slab(nd, o[k], inv[k], t_max).is_some() {
-                    pass |= bit;
-                }
-            }
+            let pass = lanes.slab(nd.min, nd.max, t_max) & mask & !blocked;
             if pass != 0 {
                 if nd.count == 0 {
                     if sp < stack.len() {
@@ -101,5 +96,44 @@ impl Bvh {
             sp -= 1;
             (node, mask) = stack[sp];
         }
+    }
+}
+
+/// A packet's origins and inverse directions by axis, one ray a lane, so that a node's box
+/// is tested against all of them at once (`Vec4`: four lanes in one SSE register on x86).
+struct Lanes {
+    o: [Vec4; 3],
+    inv: [Vec4; 3],
+}
+
+impl Lanes {
+    /// Lanes past the packet's rays repeat its first ray (their bits are masked off).
+    fn new(o: &[Vec3], inv: &[Vec3]) -> Self {
+        let lane = |v: &[Vec3], axis: usize| {
+            Vec4::from_array(std::array::from_fn(|k| v[k.min(v.len() - 1)][axis]))
+        };
+        Lanes {
+            o: [0, 1, 2].map(|a| lane(o, a)),
+            inv: [0, 1, 2].map(|a| lane(inv, a)),
+        }
+    }
+
+    /// Bit `k` set where ray `k` passes the box `[lo, hi]` before `t_max`: [`super::slab`]
+    /// for each lane, with the same operations in the same order. `Vec4::min` and `max` are
+    /// `a < b ? a : b` and `a > b ? a : b` (`minps`, `maxps`), as `Vec3`'s per-element
+    /// `min`/`max` and `min_element`/`max_element` are; the last `max(0)` and `min(t_max)`
+    /// give the number where the lane is NaN, as `f32::max`/`min` do; so every lane's
+    /// answer is the scalar test's, NaN lanes included.
+    #[inline]
+    fn slab(&self, lo: Vec3, hi: Vec3, t_max: f32) -> u8 {
+        let t = |axis: usize| {
+            let t0 = (Vec4::splat(lo[axis]) - self.o[axis]) * self.inv[axis];
+            let t1 = (Vec4::splat(hi[axis]) - self.o[axis]) * self.inv[axis];
+            (t0.min(t1), t0.max(t1))
+        };
+        let ((nx, fx), (ny, fy), (nz, fz)) = (t(0), t(1), t(2));
+        let tmin = nx.max(ny).max(nz).max(Vec4::ZERO);
+        let tmax = fx.min(fy).min(fz).min(Vec4::splat(t_max));
+        tmin.cmple(tmax).bitmask() as u8
     }
 }
