@@ -1,5 +1,6 @@
 use super::*;
 use crate::geometry::Rng;
+use glam::Vec2;
 
 /// Every triangle tested, in the BVH's normalised coordinates (the same `f32` arithmetic).
 fn brute_closest(bvh: &Bvh, tris: &[TriangleInput], ray: &Ray) -> Option<(f64, u32)> {
@@ -215,8 +216,16 @@ fn parallel_build_writes_the_serial_tree() {
 /// run together (a link's) or apart, with ids ignored per ray, in packets of 1 to 4.
 #[test]
 fn packet_answers_each_ray_as_alone() {
-    let tris = soup(5, 800, |i| i % 97, |i| i % 3 == 0);
-    let bvh = Bvh::build(&tris);
+    let mut tris = soup(5, 800, |i| i % 97, |i| i % 3 == 0);
+    // Every fifth triangle a cut-out (a checkerboard of holes) that rays may pass.
+    for t in tris.iter_mut().step_by(5) {
+        t.cut = Some(CutOut {
+            mask: 0,
+            uv: [Vec2::ZERO, Vec2::new(3.0, 0.0), Vec2::new(0.0, 3.0)],
+        });
+    }
+    let masks: Arc<[AlphaMask]> = Arc::new([AlphaMask::new(4, 4, |x, y| (x + y) % 2 == 0)]);
+    let bvh = Bvh::build_with_masks(&tris, masks);
     let mut rng = Rng::new(6, 0);
     let mut point = |scale: f64, c: DVec3| {
         c + DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * scale
