@@ -8,6 +8,7 @@ use glam::DVec3;
 
 use super::row::RowContext;
 use super::{contour, exact};
+use crate::geometry::bvh::{PACKET, ShadowRay};
 use crate::geometry::sampling::{hash_seed, triangle_point};
 use crate::geometry::shaft::Shaft;
 use crate::geometry::{Bvh, Ray, Rng, polygon};
@@ -116,7 +117,11 @@ pub fn visibility_fraction(
     rng: &mut Rng,
 ) -> f64 {
     sampled_visibility(
-        |ray| bvh.any_hit_except(ray, 1e-9, 1.0 - 1e-9, ignore),
+        |rays| {
+            let packet: Vec<ShadowRay> =
+                rays.iter().map(|&ray| ShadowRay { ray, ignore }).collect();
+            bvh.any_hit_packet(&packet, 1e-9, 1.0 - 1e-9)
+        },
         x + nx * epsilon,
         nx,
         target,
@@ -128,10 +133,12 @@ pub fn visibility_fraction(
 }
 
 /// [`visibility_fraction`] with the blocking test given: rays from `origin` (normal `nx`)
-/// to stratified points lifted `epsilon` off the target.
+/// to stratified points lifted `epsilon` off the target. `blocked` answers up to
+/// [`PACKET`] rays at once (bit `k` set where ray `k` is blocked): the rays of one origin
+/// to one polygon run close together, and a packet shares their walk through the BVH.
 #[allow(clippy::too_many_arguments)]
 fn sampled_visibility(
-    blocked: impl Fn(&Ray) -> bool,
+    blocked: impl Fn(&[Ray]) -> u8,
     origin: DVec3,
     nx: DVec3,
     target: &PolygonSampler,
@@ -156,6 +163,8 @@ fn sampled_visibility(
         }
     }
     let (mut visible, mut total) = (0.0f64, 0.0f64);
+    let (mut rays, mut weights) = ([Ray::new(origin, ny); PACKET], [0.0; PACKET]);
+    let mut n = 0;
     for a in 0..m {
         for b in 0..m {
             let u1 = (a as f64 + rng.next_f64()) / m as f64;
@@ -166,8 +175,16 @@ fn sampled_visibility(
             // cosθx cosθy / r² with an unnormalised direction.
             let w = (nx.dot(d) * ny.dot(d)).abs() / (r2 * r2).max(f64::MIN_POSITIVE);
             total += w;
-            if !blocked(&ray) {
-                visible += w;
+            (rays[n], weights[n]) = (ray, w);
+            n += 1;
+            if n == PACKET || (a + 1 == m && b + 1 == m) {
+                let hidden = blocked(&rays[..n]);
+                for (k, w) in weights[..n].iter().enumerate() {
+                    if hidden & (1 << k) == 0 {
+                        visible += w;
+                    }
+                }
+                n = 0;
             }
         }
     }
@@ -176,20 +193,19 @@ fn sampled_visibility(
 
 /// How many of 2×2 stratified rays from `origin` to the target (lifted `epsilon`) arrive.
 fn probe_rays(
-    blocked: impl Fn(&Ray) -> bool,
+    blocked: impl Fn(&[Ray]) -> u8,
     origin: DVec3,
     target: &PolygonSampler,
     epsilon: f64,
     rng: &mut Rng,
 ) -> u32 {
-    let mut seen = 0;
-    for k in 0..4u32 {
+    let rays: [Ray; 4] = std::array::from_fn(|k| {
         let u1 = ((k % 2) as f64 + rng.next_f64()) / 2.0;
         let u2 = ((k / 2) as f64 + rng.next_f64()) / 2.0;
         let y = target.point(u1, u2) + target.normal() * epsilon;
-        seen += u32::from(!blocked(&Ray::new(origin, y - origin)));
-    }
-    seen
+        Ray::new(origin, y - origin)
+    });
+    4 - (blocked(&rays) & 0xf).count_ones()
 }
 
 pub(crate) fn side(rays: u32) -> u32 {
@@ -378,7 +394,11 @@ pub(crate) fn element_visibility(
     // Only the sampled tier needs a sampler of the clipped polygon.
     let target = part_sampler(&part, sampler);
     Visibility::Fraction(sampled_visibility(
-        |ray| ctx.bvh.any_hit_among(&cutting, ray, 1e-9, 1.0 - 1e-9),
+        |rays| {
+            (rays.iter().enumerate())
+                .filter(|(_, ray)| ctx.bvh.any_hit_among(&cutting, ray, 1e-9, 1.0 - 1e-9))
+                .fold(0, |bits, (k, _)| bits | (1 << k))
+        },
         origin,
         nx,
         &target,
