@@ -248,23 +248,30 @@ pub(crate) fn patch_pair_unblocked(
         return false; // A degenerate shooter: let each element find it invisible.
     }
     let lift = |p: DVec3, n: DVec3| p + n * eps;
-    let blocked = |from: DVec3, to: DVec3| {
+    let shadow = |from: DVec3, to: DVec3| {
         let (a, b) = (lift(from, receiver.normal), lift(to, shooter.normal));
-        ctx.bvh
-            .any_hit_except(&Ray::new(a, b - a), 1e-9, 1.0 - 1e-9, ignore)
+        ShadowRay {
+            ray: Ray::new(a, b - a),
+            ignore,
+        }
     };
-    if blocked(receiver.centroid, shooter.centroid) {
+    let centre = shadow(receiver.centroid, shooter.centroid);
+    if ctx
+        .bvh
+        .any_hit_except(&centre.ray, 1e-9, 1.0 - 1e-9, centre.ignore)
+    {
         return false;
     }
     for corner in &receiver.polygon {
-        // A little inside the corner, off the neighbouring faces.
+        // A little inside the corner, off the neighbouring faces; its four rays as a packet.
         let from = *corner + (receiver.centroid - *corner) * 0.01;
-        for k in 0..4u32 {
+        let packet: [ShadowRay; 4] = std::array::from_fn(|k| {
             let u1 = ((k % 2) as f64 + rng.next_f64()) / 2.0;
             let u2 = ((k / 2) as f64 + rng.next_f64()) / 2.0;
-            if blocked(from, sampler.point(u1, u2)) {
-                return false;
-            }
+            shadow(from, sampler.point(u1, u2))
+        });
+        if ctx.bvh.any_hit_packet(&packet, 1e-9, 1.0 - 1e-9) != 0 {
+            return false;
         }
     }
     true

@@ -25,6 +25,7 @@ use std::collections::HashMap;
 use glam::DVec3;
 
 use crate::formfactor;
+use crate::geometry::bvh::{PACKET, ShadowRay};
 use crate::geometry::sampling::triangle_point;
 use crate::geometry::{Bvh, Ray, Rng, polygon};
 use crate::scene::Rgb;
@@ -188,6 +189,7 @@ impl FacetGroup {
         }
         *work += SHADOW_RAYS as u64;
         let (mut seen, mut all) = (0.0, 0.0);
+        let mut samples = Vec::with_capacity(SHADOW_RAYS);
         for k in 0..SHADOW_RAYS {
             // Stratified over the facets' cumulative kernel.
             let pick = (k as f64 + rng.next_f64()) / SHADOW_RAYS as f64 * total;
@@ -211,8 +213,22 @@ impl FacetGroup {
             // The point kernel over the sample's probability density `share / (total·A)`.
             let g = cx * cy / (r2 * r2) * f.area / share;
             all += g;
-            if !blockers.any_hit_except(&Ray::new(origin, d), 0.0, 1.0 - 1e-9, [own, f.occluder]) {
-                seen += g;
+            samples.push((
+                ShadowRay {
+                    ray: Ray::new(origin, d),
+                    ignore: [own, f.occluder],
+                },
+                g,
+            ));
+        }
+        // The rays, from one point to one light, traced four at a time.
+        for chunk in samples.chunks(PACKET) {
+            let rays: Vec<ShadowRay> = chunk.iter().map(|s| s.0).collect();
+            let hidden = blockers.any_hit_packet(&rays, 0.0, 1.0 - 1e-9);
+            for (k, (_, g)) in chunk.iter().enumerate() {
+                if hidden & (1 << k) == 0 {
+                    seen += g;
+                }
             }
         }
         if all > 0.0 {
