@@ -144,9 +144,10 @@ impl FacetGroup {
     }
 
     /// The unoccluded form factor from the point `p` (normal `n`) to each facet, `π` times
-    /// over (the kernel `A cos θ cos θ' / r²`), written to `weights`; returns their sum.
-    fn kernels(&self, p: DVec3, n: DVec3, weights: &mut Vec<f64>) -> f64 {
-        weights.clear();
+    /// over (the kernel `A cos θ cos θ' / r²`), written to `cumulative` as running sums (for
+    /// drawing facets by kernel); returns the total.
+    fn kernels(&self, p: DVec3, n: DVec3, cumulative: &mut Vec<f64>) -> f64 {
+        cumulative.clear();
         let mut total = 0.0;
         for f in &self.facets {
             let d = f.centroid - p;
@@ -165,7 +166,7 @@ impl FacetGroup {
                 }
             };
             total += w;
-            weights.push(total);
+            cumulative.push(total);
         }
         total
     }
