@@ -23,6 +23,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use glam::DVec3;
 
 use crate::formfactor::{self, FormFactorMethod, RowContext, exact};
+use crate::geometry::bvh::{PACKET, ShadowRay};
 use crate::geometry::sampling::triangle_point;
 use crate::geometry::shaft::Shaft;
 use crate::geometry::{Bvh, Ray, Rng, polygon};
@@ -232,7 +233,8 @@ impl<'a> DirectLight<'a> {
             }
             *work += SHADOW_RAYS as u64;
             let total = *l.cumulative.last().unwrap_or(&0.0);
-            let (mut seen, mut all) = (0.0, 0.0);
+            let mut all = 0.0;
+            let mut samples = Vec::with_capacity(SHADOW_RAYS);
             let m = (SHADOW_RAYS as f64).sqrt().ceil() as usize;
             for k in 0..SHADOW_RAYS {
                 let u = ((k % m) as f64 + rng.next_f64()) / m as f64;
@@ -255,14 +257,15 @@ impl<'a> DirectLight<'a> {
                 }
                 let g = cos_x * cos_y / (r2 * r2);
                 all += g;
-                let ray = Ray::new(origin, d);
-                if !self
-                    .blockers
-                    .any_hit_except(&ray, 0.0, 1.0 - 1e-9, [own, l.occluder])
-                {
-                    seen += g;
-                }
+                samples.push((
+                    ShadowRay {
+                        ray: Ray::new(origin, d),
+                        ignore: [own, l.occluder],
+                    },
+                    g,
+                ));
             }
+            let seen = unblocked_weight(self.blockers, &samples);
             if all > 0.0 {
                 sum += l.emission * (f * seen / all);
             }
@@ -273,6 +276,23 @@ impl<'a> DirectLight<'a> {
         }
         sum
     }
+}
+
+/// The summed weights of the shadow rays `samples` (ray, weight) that nothing in
+/// `blockers` stops, in their order. The rays run from one point to one light, so they go
+/// to the BVH four at a time ([`Bvh::any_hit_packet`]: each ray's answer is its own).
+fn unblocked_weight(blockers: &Bvh, samples: &[(ShadowRay, f64)]) -> f64 {
+    let mut seen = 0.0;
+    for chunk in samples.chunks(PACKET) {
+        let rays: Vec<ShadowRay> = chunk.iter().map(|s| s.0).collect();
+        let hidden = blockers.any_hit_packet(&rays, 0.0, 1.0 - 1e-9);
+        for (k, (_, g)) in chunk.iter().enumerate() {
+            if hidden & (1 << k) == 0 {
+                seen += g;
+            }
+        }
+    }
+    seen
 }
 
 /// Each element's direct share `Σ_l F_jl E_l` from the light patches' form-factor rows,

@@ -25,7 +25,7 @@ use std::collections::HashMap;
 use glam::DVec3;
 
 use crate::formfactor;
-use crate::geometry::bvh::{PACKET, ShadowRay};
+use crate::geometry::bvh::ShadowRay;
 use crate::geometry::sampling::triangle_point;
 use crate::geometry::{Bvh, Ray, Rng, polygon};
 use crate::scene::Rgb;
@@ -189,7 +189,7 @@ impl FacetGroup {
             return 0.0;
         }
         *work += SHADOW_RAYS as u64;
-        let (mut seen, mut all) = (0.0, 0.0);
+        let mut all = 0.0;
         let mut samples = Vec::with_capacity(SHADOW_RAYS);
         for k in 0..SHADOW_RAYS {
             // Stratified over the facets' cumulative kernel.
@@ -222,16 +222,7 @@ impl FacetGroup {
                 g,
             ));
         }
-        // The rays, from one point to one light, traced four at a time.
-        for chunk in samples.chunks(PACKET) {
-            let rays: Vec<ShadowRay> = chunk.iter().map(|s| s.0).collect();
-            let hidden = blockers.any_hit_packet(&rays, 0.0, 1.0 - 1e-9);
-            for (k, (_, g)) in chunk.iter().enumerate() {
-                if hidden & (1 << k) == 0 {
-                    seen += g;
-                }
-            }
-        }
+        let seen = super::unblocked_weight(blockers, &samples);
         if all > 0.0 {
             total / std::f64::consts::PI * (seen / all)
         } else {
