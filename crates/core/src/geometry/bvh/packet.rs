@@ -104,8 +104,9 @@ impl Bvh {
     }
 }
 
-/// A packet's origins and inverse directions by axis, one ray a lane, so that a node's box
-/// is tested against all of them at once (`Vec4`: four lanes in one SSE register on x86).
+/// A packet's origins, directions and inverse directions by axis, one ray a lane, so that a
+/// node's box or a triangle is tested against all of them at once (`Vec4`: four lanes in
+/// one SSE register on x86).
 struct Lanes {
     o: [Vec4; 3],
     d: [Vec4; 3],
