@@ -59,9 +59,14 @@ fn pixels_at(s: &ProgressiveSolver, x: f64, z: f64) -> Vec<f64> {
 
 /// The floor room solved: after the light's shot nothing else carries light.
 fn solved() -> ProgressiveSolver {
+    solved_obj(OBJ)
+}
+
+/// A room of `obj` (materials `MTL`) solved to a residual of 1e-9.
+fn solved_obj(obj: &str) -> ProgressiveSolver {
     let scene = Scene::from_obj_str(
         "room.obj",
-        OBJ,
+        obj,
         &[("room.mtl", MTL)],
         &LoadOptions::default(),
     )
@@ -215,23 +220,7 @@ fn a_light_of_many_faces_gives_the_closed_form() {
             );
         }
     }
-    let scene = Scene::from_obj_str(
-        "grid.obj",
-        &obj,
-        &[("room.mtl", MTL)],
-        &LoadOptions::default(),
-    )
-    .expect("scene");
-    let config = SolverConfig {
-        mesh: MeshSpec::sized(0.1, 0.25),
-        ..Default::default()
-    };
-    let mut s = ProgressiveSolver::new(scene, config).expect("solver");
-    let stop = StopCriteria {
-        residual: 1e-9,
-        ..Default::default()
-    };
-    s.run(&stop, &AtomicBool::new(false), &mut |_| {});
+    let s = solved_obj(&obj);
     let (rho, e) = (0.5, 10.0);
     for (x, z) in [(0.5, 0.5), (0.1, 0.1), (0.9, 0.3)] {
         let expected = rho * e * rect(0.25 - x, 0.75 - x, 0.25 - z, 0.75 - z, 1.0);

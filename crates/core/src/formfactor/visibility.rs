@@ -118,9 +118,12 @@ pub fn visibility_fraction(
 ) -> f64 {
     sampled_visibility(
         |rays| {
-            let packet: Vec<ShadowRay> =
-                rays.iter().map(|&ray| ShadowRay { ray, ignore }).collect();
-            bvh.any_hit_packet(&packet, 1e-9, 1.0 - 1e-9)
+            // On the stack: this runs for every receiver point of every row.
+            let packet: [ShadowRay; PACKET] = std::array::from_fn(|k| ShadowRay {
+                ray: rays[k.min(rays.len() - 1)],
+                ignore,
+            });
+            bvh.any_hit_packet(&packet[..rays.len()], 1e-9, 1.0 - 1e-9)
         },
         x + nx * epsilon,
         nx,

@@ -284,8 +284,8 @@ impl<'a> DirectLight<'a> {
 fn unblocked_weight(blockers: &Bvh, samples: &[(ShadowRay, f64)]) -> f64 {
     let mut seen = 0.0;
     for chunk in samples.chunks(PACKET) {
-        let rays: Vec<ShadowRay> = chunk.iter().map(|s| s.0).collect();
-        let hidden = blockers.any_hit_packet(&rays, 0.0, 1.0 - 1e-9);
+        let rays: [ShadowRay; PACKET] = std::array::from_fn(|k| chunk[k.min(chunk.len() - 1)].0);
+        let hidden = blockers.any_hit_packet(&rays[..chunk.len()], 0.0, 1.0 - 1e-9);
         for (k, (_, g)) in chunk.iter().enumerate() {
             if hidden & (1 << k) == 0 {
                 seen += g;

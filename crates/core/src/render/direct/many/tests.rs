@@ -69,6 +69,17 @@ fn unblocked(g: &FacetGroup, p: DVec3, n: DVec3) -> f64 {
     )
 }
 
+/// The group's unblocked factor at `p` (normal `n`) within `tolerance` (relative) of the
+/// exact sum over `faces`.
+fn assert_exact_sum(g: &FacetGroup, faces: &[Vec<DVec3>], p: DVec3, n: DVec3, tolerance: f64) {
+    let exact = exact_sum(faces, p, n);
+    let got = unblocked(g, p, n);
+    assert!(
+        (got / exact - 1.0).abs() < tolerance,
+        "at {p}: {got} against {exact}"
+    );
+}
+
 /// Far from the light the group's factor is the exact one to the point kernel's error
 /// (facets at 15–40 sizes away: `(size / r)²` under 0.5 %), and the sphere's analytic
 /// `(R / d)²` to the tessellation's (the inscribed polyhedron's smaller area, about 2 %).
@@ -82,12 +93,7 @@ fn far_from_the_light_the_factor_is_the_exact_sum() {
         (DVec3::new(3.0, 0.0, 1.0), DVec3::Y),
         (DVec3::new(0.0, 5.0, -6.0), DVec3::Z),
     ] {
-        let exact = exact_sum(&faces, p, n);
-        let got = unblocked(&g, p, n);
-        assert!(
-            (got / exact - 1.0).abs() < 5e-3,
-            "at {p}: {got} against {exact}"
-        );
+        assert_exact_sum(&g, &faces, p, n, 5e-3);
     }
     let analytic = 1.0 / 25.0;
     let got = unblocked(&g, DVec3::ZERO, DVec3::Y);
@@ -112,12 +118,7 @@ fn near_the_light_the_factor_is_still_the_exact_sum() {
             DVec3::new(-1.0, 1.0, 0.0) * std::f64::consts::FRAC_1_SQRT_2,
         ),
     ] {
-        let exact = exact_sum(&faces, p, n);
-        let got = unblocked(&g, p, n);
-        assert!(
-            (got / exact - 1.0).abs() < 0.01,
-            "at {p}: {got} against {exact}"
-        );
+        assert_exact_sum(&g, &faces, p, n, 0.01);
     }
 }
 
