@@ -126,6 +126,8 @@ fn run_one(model: &Path, kind: Option<SolverKind>, limit: f64) -> Result<Run> {
             ..Default::default()
         },
         kind: kind.unwrap_or(SolverKind::Shooting),
+        // Default flags: `--solver auto`.
+        handoff: kind.is_none(),
         ..Default::default()
     };
     let name = model.parent().and_then(|p| p.file_name()).map_or_else(

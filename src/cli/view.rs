@@ -167,8 +167,17 @@ fn parse_window(text: &str) -> Result<[f32; 2]> {
     Ok([parse(w)?, parse(h)?])
 }
 
-/// Why `--solver auto` is shooting in the viewer (`nusselt_core::solver::auto`).
-const VIEWER_AUTO_REASON: &str = "shooting: the viewer shows the solution while it converges, and shooting improves it with every shot (hierarchical radiosity shows nothing before its refinement ends)";
+/// Why `--solver auto` is shooting in the viewer (`nusselt_core::solver::auto`), and when
+/// it hands over (`nusselt_core::solver::handoff`).
+fn viewer_auto_reason() -> String {
+    use nusselt_core::solver::{auto, handoff};
+    format!(
+        "shooting: the viewer shows the solution while it converges, and shooting improves it with every shot; on a scene of more than {} elements (or {:.0e} patch × element pairs) hierarchical radiosity goes on once {:.0} % of the light is left unshot, as there each shot costs a row to every element",
+        auto::HIERARCHICAL_FROM_ELEMENTS,
+        auto::HIERARCHICAL_FROM_PAIRS,
+        100.0 * handoff::HANDOFF_UNSHOT
+    )
+}
 
 /// `--solver NAME [--omega W]`: ω only with sor, and in (0, 2); `--formfactor` (given when
 /// `formfactor`) only with a solver that computes rows.
@@ -232,7 +241,8 @@ pub fn run(args: &ViewCmdArgs) -> Result<()> {
             stop_unshot: file_solver.unshot,
             method,
             solver,
-            solver_reason: (solver_name == "auto").then(|| VIEWER_AUTO_REASON.to_string()),
+            solver_reason: (solver_name == "auto").then(viewer_auto_reason),
+            solver_auto: solver_name == "auto",
             teach,
             projector: args.projector,
             raster: super::method::raster_for(method)?,

@@ -92,6 +92,7 @@ pub fn thread_config(options: &UiOptions) -> ThreadConfig {
         play: !options.paused && options.teach.is_none(),
         max_shots,
         shot_threads: options.solver_threads,
+        handoff: options.solver_auto,
         stop_unshot: options
             .stop_unshot
             .unwrap_or(ThreadConfig::default().stop_unshot),

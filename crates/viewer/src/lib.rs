@@ -66,6 +66,9 @@ pub struct UiOptions {
     pub solver: nusselt_core::solver::SolverKind,
     /// Why, when `--solver auto` chose it (shown in the stats panel).
     pub solver_reason: Option<String>,
+    /// `--solver auto`: shooting hands a large scene over to hierarchical radiosity once
+    /// most of the light is spread (`ThreadConfig::handoff`).
+    pub solver_auto: bool,
     /// Teaching mode (`--teach`): the Teach panel opens on this view.
     pub teach: Option<teach::TeachView>,
     /// Teaching mode starts in projector mode (large text, light theme).

@@ -24,6 +24,7 @@ pub mod ambient;
 pub mod auto;
 pub mod cg;
 pub mod gathering;
+pub mod handoff;
 pub mod hierarchical;
 pub mod matrix;
 pub mod problem;

@@ -25,7 +25,8 @@ fn memory_lines(st: &super::super::snapshot::Stats) -> (String, String) {
     )
 }
 
-/// `reason`: why `--solver auto` chose the first solver, shown while that solver runs.
+/// `reason`: why `--solver auto` chose the first solver, shown while a solver it names
+/// runs (the first one, or the one it hands over to).
 pub(super) fn stats_section(ui: &mut egui::Ui, s: &Snapshot, failed: bool, reason: Option<&str>) {
     let st = &s.stats;
     egui::Grid::new("stats").num_columns(2).show(ui, |ui| {
@@ -40,7 +41,7 @@ pub(super) fn stats_section(ui: &mut egui::Ui, s: &Snapshot, failed: bool, reaso
             format!("{} ({} patches)", st.elements, st.patches),
         );
         row(ui, "solver", st.solver.to_string());
-        if let Some(why) = reason.filter(|r| r.starts_with(st.solver)) {
+        if let Some(why) = reason.filter(|r| r.contains(st.solver)) {
             // The reason after "shooting: ", wrapped: it is a sentence.
             ui.label("auto");
             ui.add(egui::Label::new(why.split_once(": ").map_or(why, |(_, w)| w)).wrap());

@@ -20,6 +20,7 @@
 //! at once so light shows up immediately.
 
 mod adapt;
+mod handoff;
 mod publish;
 mod ray_input;
 mod switch;
@@ -181,6 +182,9 @@ pub struct ThreadConfig {
     /// machine with lavapipe: no measurable change in frame times under load, 25 % fewer
     /// shots; see docs/VIEWER.md.
     pub shot_threads: Option<usize>,
+    /// `--solver auto`: shooting hands a large scene over to hierarchical radiosity once
+    /// most of the light is spread (`handoff.rs`); a solver chosen by name stays.
+    pub handoff: bool,
 }
 
 impl ThreadConfig {
@@ -201,6 +205,7 @@ impl Default for ThreadConfig {
             stop_unshot: 1e-6,
             max_shots: None,
             shot_threads: None,
+            handoff: false,
         }
     }
 }

@@ -199,6 +199,7 @@ impl Worker {
         let Some(current) = self.solver.as_ref() else {
             // Nothing loaded (a failed solve): the next load uses it.
             self.kind = kind;
+            self.handoff = false;
             return;
         };
         if let Err(e) = kind.check(current.problem()) {
@@ -213,6 +214,8 @@ impl Worker {
         };
         let (problem, rows) = solver.into_parts();
         self.kind = kind;
+        // A solver chosen by name stays.
+        self.handoff = false;
         self.build(problem, rows);
     }
 }

@@ -57,6 +57,8 @@ pub(super) struct Worker {
     pub(super) steps: usize,
     pub(super) stop_unshot: f64,
     pub(super) max_shots: Option<usize>,
+    /// The solver is `auto`'s: a large scene's shooting is handed over (`handoff.rs`).
+    pub(super) handoff: bool,
     pub(super) config: SolverConfig,
     pub(super) history: Arc<Vec<HistoryPoint>>,
     /// Solve time since the last (re)start, pauses excluded.
@@ -115,6 +117,7 @@ impl Worker {
             steps: 0,
             stop_unshot: config.stop_unshot,
             max_shots: config.max_shots,
+            handoff: config.handoff,
             config: config.solver,
             history: Arc::new(Vec::new()),
             elapsed: Duration::ZERO,
@@ -176,6 +179,7 @@ impl Worker {
                 self.guarded(None, false, Self::publish);
             }
             self.guarded(None, false, Self::shoot_once);
+            self.guarded(None, false, Self::handoff_once);
             self.guarded(None, false, Self::adapt_once);
             self.guarded(None, false, Self::teach_work_once);
         }
@@ -312,6 +316,10 @@ impl Worker {
     /// stays. A kind that refuses the new problem (its matrix over the memory budget)
     /// falls back to shooting, with an error event saying why.
     fn install(&mut self, scene: Scene, config: SolverConfig) {
+        if self.handoff {
+            // Auto starts every scene shooting (a handed-over one was hierarchical).
+            self.kind = SolverKind::Shooting;
+        }
         let name = scene.name.clone();
         let source = scene.source.clone();
         let first_view = |s: &Scene| nusselt_core::render::view::default_camera(s);
@@ -521,6 +529,7 @@ impl Worker {
             };
             if let Some(kind) = kind {
                 self.kind = kind;
+                self.handoff = solver.name.as_deref() == Some("auto");
             }
             if let Some(method) = solver.formfactor.as_deref().and_then(|m| m.parse().ok()) {
                 self.config.formfactor.method = match self.start_raster_for(method) {

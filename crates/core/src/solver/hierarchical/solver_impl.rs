@@ -3,7 +3,7 @@
 use std::sync::atomic::AtomicBool;
 
 use super::super::ambient::RegionalAmbient;
-use super::super::{Problem, RowCache, Solver, SolverError};
+use super::super::{Problem, RowCache, Solver, SolverError, channel_sum};
 use super::{Basis, HierarchicalSolver};
 use crate::scene::{MaterialId, Rgb};
 
@@ -158,6 +158,44 @@ impl Solver for HierarchicalSolver {
 }
 
 impl HierarchicalSolver {
+    /// Goes on from another solver's state instead of the emission: `radiosity` per
+    /// element (the light arrived so far) and `unshot` per patch (a shooting solver's
+    /// unshot radiance: arrived and not yet passed on). The unshot light plays the part of
+    /// the last iteration's change, which is what the next iteration reflects, so the
+    /// residual starts at the shooter's unshot fraction and the display correction goes on
+    /// from the shooter's; the first refinement links by the light already spread (the
+    /// BF oracle reads the seeded radiosity) instead of by the emission alone.
+    ///
+    /// # Panics
+    /// If `radiosity` does not have one value per element or `unshot` one per patch.
+    pub fn continue_from(&mut self, radiosity: &[Rgb], unshot: &[Rgb]) {
+        let mesh = &self.problem.mesh;
+        assert_eq!(
+            radiosity.len(),
+            mesh.elements.len(),
+            "one radiosity an element"
+        );
+        assert_eq!(
+            unshot.len(),
+            mesh.patches.len(),
+            "one unshot radiance a patch"
+        );
+        self.radiosity = radiosity.to_vec();
+        self.change = (mesh.elements.iter())
+            .map(|e| unshot[e.patch.0 as usize])
+            .collect();
+        let remaining: f64 = (self.change.iter().zip(&mesh.elements))
+            .map(|(c, e)| channel_sum(*c) * e.area)
+            .sum();
+        self.residual = if self.emitted > 0.0 {
+            (remaining / self.emitted).max(0.0)
+        } else {
+            0.0
+        };
+        debug_assert!(self.residual.is_finite());
+        self.pull();
+    }
+
     /// The irradiance still to arrive everywhere, estimated from the last iteration's
     /// change `Δ` as the ambient term estimates it from the unshot light (Cohen et al.
     /// 1988): each further Jacobi iteration's change is about `ρ̄` times the last, so the
