@@ -201,6 +201,7 @@ fn spawn_shooting(stop: f64) -> SolverHandle {
             stop_unshot: stop,
             max_shots: None,
             shot_threads: None,
+            handoff: false,
             kind: SolverKind::Shooting,
         },
     );

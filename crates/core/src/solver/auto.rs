@@ -8,7 +8,8 @@
 //! of form factors to every element, so shooting's cost follows the triangles, while the
 //! hierarchy's links follow the light. Shooting stays the choice wherever an image is
 //! wanted before the end (the viewer, a `--seconds` limit): it improves with every shot,
-//! where the hierarchy shows nothing before its refinement ends.
+//! where the hierarchy shows nothing before its refinement ends. The viewer then hands such
+//! a scene over to the hierarchy once most of the light is spread ([`super::handoff`]).
 //!
 //! Below 100,000 elements what decides is how far the light spreads: a shot costs a row of
 //! form factors to every element, and where a sky or many lit surfaces spread the light

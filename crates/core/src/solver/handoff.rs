@@ -4,12 +4,19 @@
 //! power first (Cohen et al. 1988), so with the ambient term its image is close early, but
 //! every shot costs a row of form factors to every element: on the 263 k-triangle Crytek
 //! atrium (227 k elements) it leaves about 1.3 % unshot after three minutes. Hierarchical
-//! radiosity (Hanrahan et al. 1991) converges there in about 35 s, but from the emission
-//! alone its first refinement links by the lights' radiosity only, and shows nothing for
-//! its first 14 s. So the viewer shoots until [`HANDOFF_UNSHOT`] of the power is left, which
-//! takes the lights and the brightest surfaces a few seconds, then goes on hierarchically
-//! from the shot solution ([`HierarchicalSolver::continue_from`]): its first refinement
-//! then links by the light already spread.
+//! radiosity (Hanrahan et al. 1991) converges there in about 40 s, but from dark it shows
+//! only the emission and the ambient estimate (55 % from the converged image) until its
+//! first refinement and gather, about 13 s. So the viewer shoots until [`HANDOFF_UNSHOT`]
+//! of the power is left, which takes the lights and the brightest surfaces a few seconds,
+//! then goes on hierarchically from the shot solution
+//! ([`HierarchicalSolver::continue_from`]): the image stays the shots' until the first
+//! gather, which starts from the shot light.
+//!
+//! Measured on the atrium (`nusselt bench --only live`, 2026-12-07, quiet machine, one run
+//! each): from dark, the first gathered image at 17–20 s (12.8 % from the converged one)
+//! and converged at 38.9 s; handed over at 20 % unshot (10 s), 20 % from 8 s, 13.4 % from
+//! 11 s, 2.0 % at 40 s and converged at 43.1 s. The shots cost their own time: the
+//! hierarchy's work after them is that from dark.
 //!
 //! Only scenes that `auto` would solve hierarchically without an image to show
 //! ([`super::auto::choose`]) are handed over; smaller ones shoot to the end.
@@ -20,10 +27,9 @@ use super::{HierarchicalSolver, Problem, Solver, SolverKind};
 /// The unshot fraction at which a large scene's shooting hands over. Measured on the
 /// Crytek atrium (`render sponza.obj --solver shooting --shots 80 --log shots.csv`,
 /// 2026-12-07): the emitting spheres' own shots take it from 1 to 0.30 in 2.7 s, then
-/// each shot takes off about 0.4 %. In the viewer (`nusselt bench --only live`), handing
-/// over at 0.2 (after 8 s of shooting) converged at 50 s, at 0.1 (after 17 s) at 57 s: the
-/// hierarchy's refinement costs the same from either, so shooting longer only delays it,
-/// and the displayed image was 13.6 % and 12.5 % from the converged one meanwhile.
+/// each shot takes off about 0.4 %, so 0.2 is about 6 s of shooting. In the viewer the
+/// displayed image was then 13.6 % from the converged one, no further than the
+/// hierarchy's first gathered image (12.8 %): shooting on would only delay that gather.
 pub const HANDOFF_UNSHOT: f64 = 0.2;
 
 /// Whether `solver` is shooting on a scene `auto` would solve hierarchically, and has

@@ -76,3 +76,25 @@ fn only_large_scenes_are_handed_over_and_only_once_lit() {
     assert!(!due(gathering.as_ref()));
     assert_eq!(hand_over(gathering).name(), "hierarchical");
 }
+
+/// The first refinement after the handover links by the emission, as from dark (linking
+/// by the shot light would make the second refinement's links at once and delay the first
+/// image): one step from the shots makes exactly the links one step from dark makes.
+#[test]
+fn the_first_refinement_links_by_the_emission() {
+    let mesh = MeshSpec::sized(100.0, 100.0);
+    let cancel = AtomicBool::new(false);
+    let mut dark = HierarchicalSolver::new(cornell(mesh));
+    assert!(dark.step(&cancel));
+    let mut shots = SolverKind::Shooting.build(cornell(mesh)).expect("shooting");
+    while shots.residual() > 0.3 {
+        assert!(shots.step(&cancel));
+    }
+    let unshot = shots.shooting().expect("shooting").unshot().to_vec();
+    let radiosity = shots.radiosity().to_vec();
+    let mut seeded = HierarchicalSolver::new(shots.into_parts().0);
+    seeded.continue_from(&radiosity, &unshot);
+    assert!(seeded.step(&cancel));
+    assert!(dark.link_count() > 0);
+    assert_eq!(seeded.link_count(), dark.link_count());
+}

@@ -88,6 +88,9 @@ pub struct HierarchicalSolver {
     link_start: Vec<u32>,
     /// Radiosity per node (area average of its elements).
     node_b: Vec<Rgb>,
+    /// The node radiosities the first refinement links by where they are not `node_b`:
+    /// the emission's, for a solve continued from shot light ([`Self::continue_from`]).
+    first_links_by: Option<Vec<Rgb>>,
     radiosity: Vec<Rgb>,
     /// Last iteration's change per element (the residual).
     change: Vec<Rgb>,
@@ -130,6 +133,7 @@ impl HierarchicalSolver {
             links: Vec::new(),
             link_start: Vec::new(),
             node_b: Vec::new(),
+            first_links_by: None,
             radiosity: Vec::new(),
             change: Vec::new(),
             coverage: None,
@@ -250,15 +254,20 @@ impl HierarchicalSolver {
         let budget = self.problem.cache_bytes() / std::mem::size_of::<Link>();
         let held = links.len() + blocks.len() * std::mem::size_of::<BlockLink>() / 16;
         let max_links = budget.saturating_sub(held);
-        let Some((new_links, new_blocks, capped)) =
-            linker.refine(frontier, &self.node_b, eps, max_links, cancel)
-        else {
+        let Some((new_links, new_blocks, capped)) = linker.refine(
+            frontier,
+            self.first_links_by.as_deref().unwrap_or(&self.node_b),
+            eps,
+            max_links,
+            cancel,
+        ) else {
             // Cancelled: the links as they were.
             blocks.extend(removed_blocks);
             self.set_links(merge_sorted(links, removed), blocks);
             return false;
         };
         drop((removed, removed_blocks));
+        self.first_links_by = None;
         self.link_budget_reached |= capped;
         self.links_made += new_links.len() + new_blocks.len();
         let mut new_links = new_links;
