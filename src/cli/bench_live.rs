@@ -151,7 +151,12 @@ fn run_one(model: &Path, kind: Option<SolverKind>, limit: f64) -> Result<Run> {
         let t = start.elapsed().as_secs_f64();
         if let Some(s) = handle.take_snapshot() {
             run.first_snapshot.get_or_insert(t);
-            run.solver = s.stats.solver.to_string();
+            // A handover shows as "shooting → hierarchical".
+            if run.solver.is_empty() {
+                run.solver = s.stats.solver.to_string();
+            } else if !run.solver.ends_with(s.stats.solver) {
+                run.solver = format!("{} → {}", run.solver, s.stats.solver);
+            }
             run.elements = s.stats.elements;
             if s.stats.converged && run.converged.is_none() {
                 run.converged = Some(t);

@@ -169,16 +169,46 @@ fn drawn_radiance(solver: &dyn Solver, geometry: &Geometry) -> (Vec<[f32; 3]>, V
     (radiance, correction)
 }
 
-/// Steps per second over the last second of solve time (or since the start, when shorter).
+/// Steps per second over the last second of solve time (or since the start, when shorter),
+/// counted within the current solver's steps: a handover to another solver
+/// (`handoff.rs`) restarts the count while the history goes on.
 fn steps_per_second(h: &[HistoryPoint]) -> f64 {
-    match (
-        h.last(),
-        h.iter()
-            .rev()
-            .find(|p| h.last().is_some_and(|l| l.seconds - p.seconds >= 1.0)),
-    ) {
-        (Some(l), Some(p)) => (l.steps - p.steps) as f64 / (l.seconds - p.seconds),
-        (Some(l), None) if l.seconds > 0.0 => l.steps as f64 / l.seconds,
-        _ => 0.0,
+    let Some(l) = h.last() else {
+        return 0.0;
+    };
+    let (run, t0) = match h.windows(2).rposition(|w| w[1].steps < w[0].steps) {
+        Some(i) => (&h[i + 1..], h[i].seconds),
+        None => (h, 0.0),
+    };
+    match run.iter().rev().find(|p| l.seconds - p.seconds >= 1.0) {
+        Some(p) => (l.steps - p.steps) as f64 / (l.seconds - p.seconds),
+        None if l.seconds > t0 => l.steps as f64 / (l.seconds - t0),
+        None => 0.0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(seconds: f64, steps: usize) -> HistoryPoint {
+        HistoryPoint {
+            seconds,
+            steps,
+            residual: 1.0,
+            ambient: 0.0,
+        }
+    }
+
+    /// Ten shots a second for 5 s, then a solver of long steps: its rate is its own steps
+    /// over its own time, not a difference with the shots' count.
+    #[test]
+    fn a_handover_restarts_the_rate() {
+        let mut h: Vec<HistoryPoint> = (1..=50).map(|k| point(k as f64 * 0.1, k)).collect();
+        assert!((steps_per_second(&h) - 10.0).abs() < 1e-9);
+        h.push(point(25.0, 1));
+        assert!((steps_per_second(&h) - 1.0 / 20.0).abs() < 1e-9);
+        h.push(point(35.0, 2));
+        assert!((steps_per_second(&h) - 1.0 / 10.0).abs() < 1e-9);
     }
 }
