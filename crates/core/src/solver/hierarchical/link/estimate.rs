@@ -211,24 +211,33 @@ impl Linker<'_> {
         let u = rng.next_f64();
         let (x, nx, gx) = self.point_on(ni, u, &mut rng);
         let u = rng.next_f64();
-        let mut target = self.point_on(nj, u, &mut rng);
-        if ni.is_cluster() || nj.is_cluster() {
+        // The area-uniform point of `nj` uses the next two numbers; where a candidate is
+        // chosen instead it is never needed, so it is made only as the fallback.
+        let mut uniform = rng.clone();
+        let target = if ni.is_cluster() || nj.is_cluster() {
+            rng.next_f64();
+            rng.next_f64();
             let (mut w_sum, mut chosen) = (0.0, None);
             for _ in 0..CANDIDATES {
-                let k = ((rng.next_f64() * nj.count as f64) as u32).min(nj.count - 1);
-                let e = &self.mesh.elements[self.tree.order[(nj.first + k) as usize] as usize];
-                let w = e.area * point_kernel(nx, e.normal, e.centroid - x);
+                let k = nj.first + ((rng.next_f64() * nj.count as f64) as u32).min(nj.count - 1);
+                let s = &self.tree.samples[k as usize];
+                let w = s.area * point_kernel(nx, s.normal, s.centroid - x);
                 w_sum += w;
                 if w > 0.0 && rng.next_f64() * w_sum < w {
-                    chosen = Some(e);
+                    chosen = Some(k);
                 }
             }
-            if let Some(e) = chosen {
-                let y = e.point_at(rng.next_f64(), rng.next_f64());
-                let group = self.mesh.patches[e.patch.0 as usize].occluder;
-                target = (y, e.normal, group);
+            match chosen {
+                Some(k) => {
+                    let e = &self.mesh.elements[self.tree.order[k as usize] as usize];
+                    let y = e.point_at(rng.next_f64(), rng.next_f64());
+                    (y, e.normal, self.mesh.patches[e.patch.0 as usize].occluder)
+                }
+                None => self.point_on(nj, u, &mut uniform),
             }
-        }
+        } else {
+            self.point_on(nj, u, &mut rng)
+        };
         let (y, ny, gy) = target;
         let o = x + nx * self.epsilon;
         let d = y + ny * self.epsilon - o;
