@@ -52,6 +52,7 @@ impl Mesh {
 
     /// Precomputes the weights used by [`Mesh::vertex_values`].
     pub(super) fn build_vertex_weights(&mut self) {
+        use rayon::prelude::*;
         let nv = self.vertices.len();
         let mut count = vec![0u32; nv + 1];
         for e in &self.elements {
@@ -72,16 +73,15 @@ impl Mesh {
         }
         let elems_of =
             |v: u32| &adjacent[count[v as usize] as usize..count[v as usize + 1] as usize];
-        let mut start = Vec::with_capacity(nv + 1);
-        let mut weights = Vec::with_capacity(count[nv] as usize * 2);
-        let mut ring: Vec<u32> = Vec::new();
-        for v in 0..nv as u32 {
-            start.push(weights.len() as u32);
+        // The vertices' fits are independent: in parallel over fixed chunks, joined in
+        // vertex order (the same weights whatever the thread count).
+        const CHUNK: usize = 4096;
+        let weights_of = |v: u32, ring: &mut Vec<u32>, out: &mut Vec<(u32, f64)>| {
             let p = self.vertices[v as usize];
             let first = elems_of(v);
             let total: f64 = first.iter().map(|&e| self.elements[e as usize].area).sum();
             if first.is_empty() || total <= 0.0 {
-                continue;
+                return;
             }
             let h = (total / first.len() as f64).sqrt();
             let offset = first
@@ -138,11 +138,33 @@ impl Mesh {
                     for e in ring {
                         let w = self.elements[e as usize].area * z.dot(phi(e));
                         debug_assert!(w.is_finite());
-                        weights.push((e, w));
+                        out.push((e, w));
                     }
                 }
-                None => average(&mut weights),
+                None => average(out),
             }
+        };
+        let chunks: Vec<(Vec<u32>, Vec<(u32, f64)>)> = (0..nv.div_ceil(CHUNK))
+            .into_par_iter()
+            .map(|c| {
+                let (mut lengths, mut out, mut ring) = (Vec::new(), Vec::new(), Vec::new());
+                for v in c * CHUNK..nv.min((c + 1) * CHUNK) {
+                    let before = out.len();
+                    weights_of(v as u32, &mut ring, &mut out);
+                    lengths.push((out.len() - before) as u32);
+                }
+                (lengths, out)
+            })
+            .collect();
+        let mut start = Vec::with_capacity(nv + 1);
+        let mut weights = Vec::with_capacity(chunks.iter().map(|c| c.1.len()).sum());
+        let mut offset = 0u32;
+        for (lengths, out) in chunks {
+            for n in lengths {
+                start.push(offset);
+                offset += n;
+            }
+            weights.extend(out);
         }
         start.push(weights.len() as u32);
         self.vertex_weight_start = start;
