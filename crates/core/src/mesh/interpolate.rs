@@ -131,7 +131,7 @@ impl Mesh {
                 }
                 ring.sort_unstable();
                 ring.dedup();
-                solution = fit(&ring).map(|z| (z, ring.clone()));
+                solution = fit(ring).map(|z| (z, ring.clone()));
             }
             match solution {
                 Some((z, ring)) => {
@@ -144,7 +144,9 @@ impl Mesh {
                 None => average(out),
             }
         };
-        let chunks: Vec<(Vec<u32>, Vec<(u32, f64)>)> = (0..nv.div_ceil(CHUNK))
+        // Per chunk: each vertex's weight count, and the weights.
+        type Chunk = (Vec<u32>, Vec<(u32, f64)>);
+        let chunks: Vec<Chunk> = (0..nv.div_ceil(CHUNK))
             .into_par_iter()
             .map(|c| {
                 let (mut lengths, mut out, mut ring) = (Vec::new(), Vec::new(), Vec::new());
