@@ -142,7 +142,7 @@ impl Worker {
             elements: geometry.elements,
             patches: geometry.patches,
             steps: solver.steps(),
-            steps_per_second: steps_per_second(&self.history),
+            steps_per_second: steps_per_second(&self.history, solver.steps()),
             residual,
             elapsed_seconds: self.elapsed.as_secs_f64(),
             playing: self.playing,
@@ -171,11 +171,16 @@ fn drawn_radiance(solver: &dyn Solver, geometry: &Geometry) -> (Vec<[f32; 3]>, V
 
 /// Steps per second over the last second of solve time (or since the start, when shorter),
 /// counted within the current solver's steps: a handover to another solver
-/// (`handoff.rs`) restarts the count while the history goes on.
-fn steps_per_second(h: &[HistoryPoint]) -> f64 {
+/// (`handoff.rs`) restarts the count while the history goes on. `steps_now`: the current
+/// solver's steps (0 after a handover until its first step, while the history's last point
+/// is still the old solver's).
+fn steps_per_second(h: &[HistoryPoint], steps_now: usize) -> f64 {
     let Some(l) = h.last() else {
         return 0.0;
     };
+    if l.steps > steps_now {
+        return 0.0;
+    }
     let (run, t0) = match h.windows(2).rposition(|w| w[1].steps < w[0].steps) {
         Some(i) => (&h[i + 1..], h[i].seconds),
         None => (h, 0.0),
@@ -205,10 +210,12 @@ mod tests {
     #[test]
     fn a_handover_restarts_the_rate() {
         let mut h: Vec<HistoryPoint> = (1..=50).map(|k| point(k as f64 * 0.1, k)).collect();
-        assert!((steps_per_second(&h) - 10.0).abs() < 1e-9);
+        assert!((steps_per_second(&h, 50) - 10.0).abs() < 1e-9);
+        // Handed over, before the new solver's first step: no rate yet, not the old one's.
+        assert_eq!(steps_per_second(&h, 0), 0.0);
         h.push(point(25.0, 1));
-        assert!((steps_per_second(&h) - 1.0 / 20.0).abs() < 1e-9);
+        assert!((steps_per_second(&h, 1) - 1.0 / 20.0).abs() < 1e-9);
         h.push(point(35.0, 2));
-        assert!((steps_per_second(&h) - 1.0 / 10.0).abs() < 1e-9);
+        assert!((steps_per_second(&h, 2) - 1.0 / 10.0).abs() < 1e-9);
     }
 }
