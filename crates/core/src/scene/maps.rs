@@ -202,9 +202,36 @@ pub(super) struct LoadedMaps {
     pub warnings: Vec<String>,
 }
 
-/// Resolves and reads the requested maps, each distinct (file, kind) once, in parallel. A
-/// missing or unreadable file is a warning naming the MTL line and the path tried.
-pub(super) fn load_maps(requests: &[MapRequest]) -> LoadedMaps {
+/// Maps read ahead of the requests that will ask for them ([`preload`]), by resolved path
+/// and kind.
+pub(super) type Preloaded = HashMap<(PathBuf, TextureKind), Result<Texture, String>>;
+
+/// Reads the maps `requests` resolve to, each distinct (file, kind) once, in parallel, for
+/// [`load_maps`] to take instead of reading them again. Files that do not resolve are left
+/// to it (it warns).
+pub(super) fn preload(requests: &[MapRequest]) -> Preloaded {
+    let mut keys: Vec<(PathBuf, TextureKind)> = Vec::new();
+    for r in requests {
+        let dir = Path::new(&r.mtl_file).parent().unwrap_or(Path::new(""));
+        if let Some(p) = resolve_texture_path(dir, &r.name) {
+            let key = (p, r.slot.kind());
+            if !keys.contains(&key) {
+                keys.push(key);
+            }
+        }
+    }
+    keys.into_par_iter()
+        .map(|(p, kind)| {
+            let read = read_image(&p, kind);
+            ((p, kind), read)
+        })
+        .collect()
+}
+
+/// Resolves and reads the requested maps, each distinct (file, kind) once, in parallel
+/// (taken from `preloaded` where it has them). A missing or unreadable file is a warning
+/// naming the MTL line and the path tried.
+pub(super) fn load_maps(requests: &[MapRequest], mut preloaded: Preloaded) -> LoadedMaps {
     let mut warnings = Vec::new();
     let mut keys: Vec<(PathBuf, TextureKind)> = Vec::new();
     let mut key_of: HashMap<(PathBuf, TextureKind), usize> = HashMap::new();
@@ -237,9 +264,11 @@ pub(super) fn load_maps(requests: &[MapRequest]) -> LoadedMaps {
             &format!("texture not found (tried {})", tried.display()),
         ));
     }
-    let read: Vec<Result<Texture, String>> = keys
-        .par_iter()
-        .map(|(p, kind)| read_image(p, *kind))
+    let mut ahead: Vec<Option<Result<Texture, String>>> =
+        keys.iter().map(|k| preloaded.remove(k)).collect();
+    drop(preloaded);
+    let read: Vec<Result<Texture, String>> = (keys.par_iter().zip(ahead.par_iter_mut()))
+        .map(|((p, kind), ahead)| ahead.take().unwrap_or_else(|| read_image(p, *kind)))
         .collect();
     let mut textures = Vec::new();
     let mut id_of_key = vec![None; keys.len()];

@@ -277,7 +277,7 @@ impl Scene {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "scene".into());
-        let (mut scene, requests) = validate::load(
+        let (mut scene, requests, preloaded) = validate::load(
             &path.display().to_string(),
             &text,
             &mut |mtl| {
@@ -288,16 +288,17 @@ impl Scene {
                 }
             },
             opts,
+            |ahead| maps::preload(&ahead),
         )?;
         scene.name = name;
         scene.source = Some(path.to_path_buf());
-        scene.attach_maps(&requests);
+        scene.attach_maps(&requests, preloaded);
         Ok(scene)
     }
 
     /// Reads the requested texture maps and points the materials at them.
-    fn attach_maps(&mut self, requests: &[maps::MapRequest]) {
-        let loaded = maps::load_maps(requests);
+    fn attach_maps(&mut self, requests: &[maps::MapRequest], preloaded: maps::Preloaded) {
+        let loaded = maps::load_maps(requests, preloaded);
         for (r, id) in requests.iter().zip(&loaded.assigned) {
             let m = &mut self.materials[r.material];
             match r.slot {
@@ -317,7 +318,7 @@ impl Scene {
         mtls: &[(&str, &str)],
         opts: &LoadOptions,
     ) -> Result<Scene, SceneError> {
-        let (mut scene, requests) = validate::load(
+        let (mut scene, requests, ()) = validate::load(
             name,
             obj,
             &mut |mtl| {
@@ -330,6 +331,7 @@ impl Scene {
                     })
             },
             opts,
+            |_| (),
         )?;
         scene.name = name.to_string();
         if let Some(r) = requests.first() {

@@ -29,6 +29,8 @@ struct ObjScan {
     /// Per face, whether every vertex names a texture coordinate.
     face_uv: Vec<bool>,
     mtllibs: Vec<(String, usize)>,
+    /// The material names `usemtl` asks for ([`material_key`]s).
+    usemtl: std::collections::HashSet<String>,
     warnings: Vec<String>,
 }
 
@@ -93,6 +95,7 @@ fn scan_obj(file: &str, text: &str) -> Result<ObjScan, SceneError> {
         face_lines: Vec::new(),
         face_uv: Vec::new(),
         mtllibs: Vec::new(),
+        usemtl: Default::default(),
         warnings: Vec::new(),
     };
     let mut unknown: HashMap<String, usize> = HashMap::new();
@@ -160,6 +163,7 @@ fn scan_obj(file: &str, text: &str) -> Result<ObjScan, SceneError> {
                 if args.is_empty() {
                     return Err(parse_err(file, line, "'usemtl' needs a material name"));
                 }
+                scan.usemtl.insert(material_key(&args.join(" ")));
             }
             "o" | "g" | "s" | "l" | "p" | "vp" | "cstype" | "deg" | "curv" | "surf" | "parm"
             | "end" | "mg" | "lod" | "usemap" | "maplib" | "bevel" | "c_interp" | "d_interp"
@@ -379,12 +383,13 @@ pub(super) type MtlReader<'a> = dyn FnMut(&str) -> Result<(String, String), Scen
 
 /// Loads OBJ text; `read_mtl` returns (display name, text) of a named material library.
 /// Also returns the texture maps the materials in use ask for (not read here).
-pub(super) fn load(
+pub(super) fn load<T: Send>(
     file: &str,
     text: &str,
     read_mtl: &mut MtlReader,
     opts: &LoadOptions,
-) -> Result<(Scene, Vec<MapRequest>), SceneError> {
+    beside: impl FnOnce(Vec<MapRequest>) -> T + Send,
+) -> Result<(Scene, Vec<MapRequest>, T), SceneError> {
     let scan = scan_obj(file, text)?;
     let mut warnings = scan.warnings.clone();
     let mut mtl_texts: HashMap<String, String> = HashMap::new();
@@ -407,7 +412,11 @@ pub(super) fn load(
             message: "no faces: the file is empty or has only points and lines".into(),
         });
     }
-    let (models, tmats) = parse(file, text, &scan, &mtl_texts)?;
+    // The maps of the materials `usemtl` names are known before the faces are: `beside`
+    // (the file loader reads them) runs while the faces are parsed.
+    let ahead = ahead_requests(&scan.usemtl, &entries);
+    let (side, parsed) = rayon::join(|| beside(ahead), || parse(file, text, &scan, &mtl_texts));
+    let (models, tmats) = parsed?;
     let mut materials: Vec<Material> = tmats
         .iter()
         .map(|m| material(m, entries.get(&material_key(&m.name))))
@@ -436,7 +445,30 @@ pub(super) fn load(
         texture_bytes: 0,
         lights: Vec::new(),
     };
-    Ok((scene, requests))
+    Ok((scene, requests, side))
+}
+
+/// The maps of the MTL materials in `used` (before the faces say which are used, so
+/// `material` is not yet an index: `usize::MAX`).
+fn ahead_requests(
+    used: &std::collections::HashSet<String>,
+    entries: &HashMap<String, MtlEntry>,
+) -> Vec<MapRequest> {
+    let mut out = Vec::new();
+    for e in (entries.iter()).filter_map(|(k, e)| used.contains(k).then_some(e)) {
+        for (slot, map) in [(Slot::Diffuse, &e.diffuse), (Slot::Alpha, &e.alpha)] {
+            if let Some((statement, line)) = map {
+                out.push(MapRequest {
+                    material: usize::MAX,
+                    slot,
+                    name: statement.name.clone(),
+                    mtl_file: e.file.clone(),
+                    line: *line,
+                });
+            }
+        }
+    }
+    out
 }
 
 /// `tobj`'s parse of the checked text: the models and the materials.
