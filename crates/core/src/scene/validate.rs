@@ -454,21 +454,25 @@ fn ahead_requests(
     used: &std::collections::HashSet<String>,
     entries: &HashMap<String, MtlEntry>,
 ) -> Vec<MapRequest> {
-    let mut out = Vec::new();
-    for e in (entries.iter()).filter_map(|(k, e)| used.contains(k).then_some(e)) {
-        for (slot, map) in [(Slot::Diffuse, &e.diffuse), (Slot::Alpha, &e.alpha)] {
-            if let Some((statement, line)) = map {
-                out.push(MapRequest {
-                    material: usize::MAX,
-                    slot,
-                    name: statement.name.clone(),
-                    mtl_file: e.file.clone(),
-                    line: *line,
-                });
-            }
-        }
-    }
-    out
+    (entries.iter())
+        .filter(|(k, _)| used.contains(*k))
+        .flat_map(|(_, e)| entry_requests(e, usize::MAX))
+        .collect()
+}
+
+/// The maps (diffuse, then alpha) MTL entry `e` asks for, as requests of `material`.
+fn entry_requests(e: &MtlEntry, material: usize) -> impl Iterator<Item = MapRequest> + '_ {
+    [(Slot::Diffuse, &e.diffuse), (Slot::Alpha, &e.alpha)]
+        .into_iter()
+        .filter_map(move |(slot, map)| {
+            map.as_ref().map(|(statement, line)| MapRequest {
+                material,
+                slot,
+                name: statement.name.clone(),
+                mtl_file: e.file.clone(),
+                line: *line,
+            })
+        })
 }
 
 /// `tobj`'s parse of the checked text: the models and the materials.
@@ -553,19 +557,8 @@ fn map_requests(
     }
     let mut out = Vec::new();
     for (i, m) in tmats.iter().enumerate().filter(|(i, _)| used[*i]) {
-        let Some(e) = entries.get(&material_key(&m.name)) else {
-            continue;
-        };
-        for (slot, map) in [(Slot::Diffuse, &e.diffuse), (Slot::Alpha, &e.alpha)] {
-            if let Some((statement, line)) = map {
-                out.push(MapRequest {
-                    material: i,
-                    slot,
-                    name: statement.name.clone(),
-                    mtl_file: e.file.clone(),
-                    line: *line,
-                });
-            }
+        if let Some(e) = entries.get(&material_key(&m.name)) {
+            out.extend(entry_requests(e, i));
         }
     }
     out

@@ -208,11 +208,6 @@ impl Problem {
         self.patch_texture = means.patch_texture;
     }
 
-    /// Area-weighted mean over each patch's elements of a per-element value.
-    fn patch_means(&self, values: &[Rgb]) -> Vec<Rgb> {
-        patch_means(&self.mesh, values)
-    }
-
     /// Per element, the mean of its diffuse texture (empty when nothing is textured).
     pub fn element_texture(&self) -> &[Rgb] {
         &self.element_texture
@@ -266,7 +261,7 @@ impl Problem {
             let at: Vec<Rgb> = (0..self.mesh.elements.len())
                 .map(|e| self.external.at(e))
                 .collect();
-            self.patch_means(&at)
+            patch_means(&self.mesh, &at)
         };
     }
 

@@ -211,10 +211,10 @@ impl Linker<'_> {
         let u = rng.next_f64();
         let (x, nx, gx) = self.point_on(ni, u, &mut rng);
         let u = rng.next_f64();
-        // The area-uniform point of `nj` uses the next two numbers; where a candidate is
-        // chosen instead it is never needed, so it is made only as the fallback.
-        let mut uniform = rng.clone();
         let target = if ni.is_cluster() || nj.is_cluster() {
+            // The area-uniform point of `nj` uses the next two numbers; where a candidate
+            // is chosen instead it is never needed, so it is made only as the fallback.
+            let mut uniform = rng.clone();
             rng.next_f64();
             rng.next_f64();
             let (mut w_sum, mut chosen) = (0.0, None);
