@@ -66,9 +66,7 @@ fn seen(view: &SolutionView, ray: &Ray, sky: Rgb) -> Rgb {
     if !hit.front && !view.scene.two_sided {
         return Rgb::ZERO;
     }
-    let tri = view.mesh.triangles[hit.id as usize];
-    let [a, b, c] = tri.map(|v| view.vertex_radiance[v as usize]);
-    a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v
+    view.interpolated(hit.id, hit.u, hit.v)
 }
 
 fn shade(

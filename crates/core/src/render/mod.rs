@@ -72,6 +72,17 @@ impl SolutionView<'_> {
         let (texel, _alpha) = self.scene.texel(self.mesh.elements[e].face as usize, x)?;
         Some(texel).filter(|t| t.is_finite())
     }
+
+    /// The vertex radiance interpolated at a hit on display triangle `triangle`. The hit's
+    /// barycentrics can fall a rounding outside the triangle (`u + v` a few ulps above 1);
+    /// they are clamped to it, so the value stays a convex mix of its vertices' (never
+    /// below zero where they are not).
+    pub fn interpolated(&self, triangle: u32, u: f64, v: f64) -> Rgb {
+        let tri = self.mesh.triangles[triangle as usize];
+        let [a, b, c] = tri.map(|i| self.vertex_radiance[i as usize]);
+        let (u, v) = (u.max(0.0), v.max(0.0));
+        a * (1.0 - u - v).max(0.0) + b * u + c * v
+    }
 }
 
 /// A texture mean below which a channel is taken as black (left undivided).
@@ -121,7 +132,6 @@ fn shade(view: &SolutionView, ray: &Ray) -> FirstHit {
     let Some(hit) = view.bvh.closest_hit(ray, 0.0, f64::INFINITY) else {
         return FirstHit::Background;
     };
-    let tri = view.mesh.triangles[hit.id as usize];
     let element = view.mesh.triangle_element[hit.id as usize];
     let patch = view
         .mesh
@@ -130,8 +140,7 @@ fn shade(view: &SolutionView, ray: &Ray) -> FirstHit {
     if !hit.front && !view.scene.two_sided {
         return FirstHit::Surface(Rgb::ZERO); // the unlit back of a one-sided face
     }
-    let [a, b, c] = tri.map(|v| view.vertex_radiance[v as usize]);
-    let mut radiance = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
+    let mut radiance = view.interpolated(hit.id, hit.u, hit.v);
     if let Some(texel) = view.texel(element.0 as usize, ray.at(hit.t)) {
         radiance = material.emission + (radiance - material.emission) * texel;
     }

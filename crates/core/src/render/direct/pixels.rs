@@ -307,7 +307,6 @@ fn see(view: &SolutionView, ray: &Ray) -> Seen {
     let Some(hit) = view.bvh.closest_hit(ray, 0.0, f64::INFINITY) else {
         return Seen::Nothing;
     };
-    let tri = view.mesh.triangles[hit.id as usize];
     let element = &view.mesh.elements[view.mesh.triangle_element[hit.id as usize].0 as usize];
     let patch = view.mesh.patch(element.patch);
     let material = &view.scene.materials[patch.material.0 as usize];
@@ -319,9 +318,8 @@ fn see(view: &SolutionView, ray: &Ray) -> Seen {
     if material.is_emitter() && material.reflectance == Rgb::ZERO {
         return Seen::Emitter(material.emission);
     }
-    let [a, b, c] = tri.map(|v| view.vertex_radiance[v as usize]);
     let p = ray.at(hit.t);
-    let mut indirect = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
+    let mut indirect = view.interpolated(hit.id, hit.u, hit.v);
     let mut rho = material.reflectance;
     let e = view.mesh.triangle_element[hit.id as usize].0 as usize;
     if let Some(texel) = view.texel(e, p) {
