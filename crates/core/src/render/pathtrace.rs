@@ -38,6 +38,17 @@ struct LightTri {
     emission: Rgb,
 }
 
+/// A lit first hit ([`PathTracer::first_lit_face`]).
+#[derive(Clone, Copy, Debug)]
+pub struct LitHit {
+    /// The input face.
+    pub face: usize,
+    /// The point.
+    pub x: DVec3,
+    /// The face's normal on the side the ray came from.
+    pub n: DVec3,
+}
+
 /// The scene prepared for path tracing.
 pub struct PathTracer<'a> {
     scene: &'a Scene,
@@ -263,9 +274,10 @@ impl<'a> PathTracer<'a> {
         self.first_lit_face(ray, samples, rng).is_some()
     }
 
-    /// The input face the ray's first hit lies on, when that point is lit
-    /// ([`first_hit_is_lit`](Self::first_hit_is_lit)).
-    pub fn first_lit_face(&self, ray: &Ray, samples: u32, rng: &mut Rng) -> Option<usize> {
+    /// The ray's first hit when that point is lit
+    /// ([`first_hit_is_lit`](Self::first_hit_is_lit)): the input face it lies on, the point
+    /// and the face's normal on the side the ray came from.
+    pub fn first_lit_face(&self, ray: &Ray, samples: u32, rng: &mut Rng) -> Option<LitHit> {
         let hit = self.bvh.closest_hit(ray, 0.0, f64::INFINITY)?;
         let (face, mut n) = self.tri_face[hit.id as usize];
         if !hit.front {
@@ -274,10 +286,11 @@ impl<'a> PathTracer<'a> {
             }
             n = -n;
         }
-        if self.scene.materials[self.scene.faces[face].material.0 as usize].is_emitter() {
-            return Some(face);
-        }
         let x = ray.at(hit.t);
+        let lit = LitHit { face, x, n };
+        if self.scene.materials[self.scene.faces[face].material.0 as usize].is_emitter() {
+            return Some(lit);
+        }
         (0..samples)
             .any(|_| {
                 let d = cosine_hemisphere(n, rng.next_f64(), rng.next_f64());
@@ -288,7 +301,7 @@ impl<'a> PathTracer<'a> {
                         .is_none();
                 sky || self.direct(x, n, rng).max_element() > 0.0
             })
-            .then_some(face)
+            .then_some(lit)
     }
 
     /// Direct irradiance term `(1/π) ∫ Le cosθ dω` at `x` (to be multiplied by ρ): one

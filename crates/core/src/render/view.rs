@@ -5,7 +5,8 @@
 //! the viewer). Instead, candidate views are scored by how many of a few hundred rays
 //! through them hit a light or the lit front of a surface (one light sample each, through
 //! the path tracer's own light sampling), scaled down when they land on fewer than a dozen
-//! faces, and the best is taken: from outside along the six axes and eight diagonals,
+//! faces, with hits on the model's outer skin (a roof in the sun) counting a quarter, and
+//! the best is taken: from outside along the six axes and eight diagonals,
 //! framing the bounds, and, for a closed room or building whose outside shows only a few
 //! walls, from near its upper corners and from its centre.
 
@@ -39,12 +40,12 @@ pub fn choose_camera(scene: &Scene) -> Camera {
         if inside && best.is_some_and(|(s, varied, _)| varied && s >= OUTSIDE_ENOUGH) {
             break;
         }
-        let (lit, faces) = score(&tracer, &camera);
+        let (lit, faces) = score(&tracer, &camera, (b.min, b.max));
         let (score, varied) = (
             lit * (faces as f64 / VARIED_FACES as f64).min(1.0),
             faces >= VARIED_FACES,
         );
-        if best.is_none_or(|(s, _, _)| score > s + TIE) {
+        if best.is_none_or(|(s, _, _)| score > s * (1.0 + TIE)) {
             best = Some((score, varied, camera));
         }
     }
@@ -58,12 +59,39 @@ pub fn choose_camera(scene: &Scene) -> Camera {
 /// inside, of arches, columns and floor, is the one a user wants first.
 const VARIED_FACES: usize = 12;
 
-/// Fraction of the grid's rays whose first hit is lit, and the number of distinct faces
-/// those land on.
-fn score(tracer: &PathTracer, camera: &Camera) -> (f64, usize) {
+/// How much a lit hit on the model's outer skin counts (see [`depth_in`]).
+const SKIN_WEIGHT: f64 = 0.25;
+
+/// Hits less than this fraction of the bounds' diagonal inside the bounds are on the
+/// model's outer skin.
+const SKIN_DEPTH: f64 = 0.02;
+
+/// How far past its entry into the bounds `(min, max)` a ray from `eye` reaches `x`:
+/// a roof or an outer wall seen from outside lies just inside, the rooms behind a door or
+/// the floor of a courtyard deep inside. A building without lights of its own is lit by
+/// the default sky and sun on its outside; counted in full, a view of its roof in the sun
+/// would beat the view through its door into the rooms a user opened it for.
+fn depth_in(eye: DVec3, x: DVec3, (min, max): (DVec3, DVec3)) -> f64 {
+    let Some(dir) = (x - eye).try_normalize() else {
+        return 0.0;
+    };
+    let mut entry: f64 = 0.0;
+    for k in 0..3 {
+        if dir[k] != 0.0 {
+            let (t0, t1) = ((min[k] - eye[k]) / dir[k], (max[k] - eye[k]) / dir[k]);
+            entry = entry.max(t0.min(t1));
+        }
+    }
+    (x - eye).length() - entry
+}
+
+/// Fraction of the grid's rays whose first hit is lit (those on the model's outer skin
+/// counted [`SKIN_WEIGHT`]), and the number of distinct faces the lit hits land on.
+fn score(tracer: &PathTracer, camera: &Camera, bounds: (DVec3, DVec3)) -> (f64, usize) {
     let mut rng = Rng::new(0x5eed, 7);
-    let mut lit = 0u32;
+    let mut lit = 0.0;
     let mut faces = std::collections::BTreeSet::new();
+    let diagonal = (bounds.1 - bounds.0).length();
     for j in 0..GRID_Y {
         for i in 0..GRID_X {
             let dir = camera.ray_dir(
@@ -72,18 +100,19 @@ fn score(tracer: &PathTracer, camera: &Camera) -> (f64, usize) {
                 256,
                 256,
             );
-            if let Some(face) = tracer.first_lit_face(&Ray::new(camera.eye, dir), 2, &mut rng) {
-                lit += 1;
-                faces.insert(face);
+            if let Some(hit) = tracer.first_lit_face(&Ray::new(camera.eye, dir), 2, &mut rng) {
+                let skin = depth_in(camera.eye, hit.x, bounds) < SKIN_DEPTH * diagonal;
+                lit += if skin { SKIN_WEIGHT } else { 1.0 };
+                faces.insert(hit.face);
             }
         }
     }
-    (lit as f64 / (GRID_X * GRID_Y) as f64, faces.len())
+    (lit / (GRID_X * GRID_Y) as f64, faces.len())
 }
 
-/// A later candidate must beat the best so far by this fraction of rays (sampling noise):
-/// among equals the earlier, more natural view stays.
-const TIE: f64 = 0.03;
+/// A later candidate must beat the best so far by this fraction of its score (sampling
+/// noise): among equals the earlier, more natural view stays.
+const TIE: f64 = 0.15;
 
 /// The distance from `center` along `-dir` at which every corner of the box is inside a
 /// square image of `vfov_deg`, with a small margin.
@@ -257,9 +286,57 @@ mod tests {
                 if open_pz { "+" } else { "-" }
             );
             let tracer = PathTracer::new(&scene);
-            let (lit, _) = score(&tracer, &cam);
+            let b = scene.bounds();
+            let (lit, _) = score(&tracer, &cam, (b.min, b.max));
             assert!(lit > 0.3, "{lit}");
         }
+    }
+
+    /// A shop: a box of inward-facing walls open towards +z, under a flat roof that faces
+    /// up, lit only by a sky and a sun. From above the sunlit roof fills more of the frame
+    /// than the rooms seen through the opening, which a user opened the model for.
+    #[test]
+    fn a_building_is_seen_through_its_door_not_from_its_roof() {
+        // Each surface a 4 × 4 grid of quads (as many faces as the jeweller's shop's roof
+        // shows from above), facing `u × v`.
+        let mut obj = String::from("mtllib m.mtl\nusemtl w\n");
+        let mut vertices = 0;
+        let mut grid = |o: DVec3, u: DVec3, v: DVec3| {
+            for i in 0..4 {
+                for j in 0..4 {
+                    let c = o + u * (i as f64 / 4.0) + v * (j as f64 / 4.0);
+                    for p in [c, c + u / 4.0, c + (u + v) / 4.0, c + v / 4.0] {
+                        obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
+                    }
+                    let k = vertices + 1;
+                    obj += &format!("f {} {} {} {}\n", k, k + 1, k + 2, k + 3);
+                    vertices += 4;
+                }
+            }
+        };
+        let (x, y, z) = (DVec3::X, DVec3::Y, DVec3::Z);
+        grid(DVec3::ZERO, x, y); // back wall
+        grid(DVec3::ZERO, z, x); // floor
+        grid(y, x, z); // ceiling
+        grid(DVec3::ZERO, y, z); // left wall
+        grid(x, z, y); // right wall
+        // The roof, a little above the ceiling and wider than the walls, facing up.
+        grid(DVec3::new(-0.1, 1.02, -0.1), z * 1.2, x * 1.2);
+        let mtl = "newmtl w\nKd 0.5 0.5 0.5\n";
+        let mut scene =
+            Scene::from_obj_str("shop.obj", &obj, &[("m.mtl", mtl)], &LoadOptions::default())
+                .expect("scene");
+        scene.lights.push(crate::scene::Light::Sky {
+            radiance: DVec3::splat(0.5),
+        });
+        scene.lights.push(crate::scene::Light::Sun {
+            direction: crate::scene::default_sun_direction(),
+            irradiance: DVec3::splat(2.0),
+            angular_radius: 0.0,
+        });
+        let cam = choose_camera(&scene);
+        let look = cam.target - cam.eye;
+        assert!(look.z < 0.0 && cam.eye.z > 1.0, "{cam:?}");
     }
 
     #[test]
