@@ -716,3 +716,32 @@ fn a_found_soup_renders_no_negative_pixel() {
     ];
     assert_eq!(soup_problem(&points, &faces, true), None);
 }
+
+/// The first view of two shared models that open the wrong way if the chooser counts lit
+/// pixels alone: the jeweller's shop (no lights; under the default sky and sun its roof
+/// fills the view from above) and McGuire's Cornell box with Suzanne and its added ceiling
+/// light (a plan view into the box). Both are seen from +z, through their open fronts.
+#[test]
+fn shared_models_open_from_the_front_not_from_above() {
+    for model in [
+        "bijoutier/BOUTIQUEbijoutier.obj",
+        "cornell_variants/CornellBox-Suzanne-lit.obj",
+    ] {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/models")
+            .join(model);
+        let mut scene = Scene::load(&path, &LoadOptions::default()).unwrap_or_else(|e| {
+            panic!(
+                "{} (the shared models must be present): {e}",
+                path.display()
+            )
+        });
+        scene.add_default_lights();
+        let camera = nusselt_core::render::view::default_camera(&scene);
+        let look = (camera.target - camera.eye).normalize_or_zero();
+        assert!(
+            look.z < -0.9 && camera.eye.z > scene.bounds().max.z,
+            "{model}: {camera:?}"
+        );
+    }
+}

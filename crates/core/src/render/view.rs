@@ -42,7 +42,7 @@ pub fn choose_camera(scene: &Scene) -> Camera {
         }
         let (lit, faces) = score(&tracer, &camera, (b.min, b.max));
         let (score, varied) = (
-            lit * (faces as f64 / VARIED_FACES as f64).min(1.0),
+            lit * (faces as f64 / VARIED_FACES as f64).min(1.0) * plan_weight(&camera),
             faces >= VARIED_FACES,
         );
         if best.is_none_or(|(s, _, _)| score > s * (1.0 + TIE)) {
@@ -51,6 +51,19 @@ pub fn choose_camera(scene: &Scene) -> Camera {
     }
     best.map(|(_, _, c)| c)
         .unwrap_or_else(|| Camera::framing(b.min, b.max))
+}
+
+/// What a view straight down (a plan) counts: it sees the floor and the tops of things, and
+/// wins on lit fraction alone over the front of a box open towards the viewer (McGuire's
+/// Cornell box with Suzanne under its added ceiling light), which is the view people
+/// expect unless the plan is clearly better (a ground plane seen from above).
+const PLAN_WEIGHT: f64 = 0.8;
+
+fn plan_weight(camera: &Camera) -> f64 {
+    let down = (camera.target - camera.eye)
+        .try_normalize()
+        .is_some_and(|d| d.y < -0.99);
+    if down { PLAN_WEIGHT } else { 1.0 }
 }
 
 /// Distinct lit faces a view must show for its score to count in full: fewer, and it is
