@@ -722,7 +722,7 @@ fn a_found_soup_renders_no_negative_pixel() {
 /// fills the view from above) and McGuire's Cornell box with Suzanne and its added ceiling
 /// light (a plan view into the box). Both are seen from +z, through their open fronts.
 #[test]
-fn shared_models_open_from_the_front_not_from_above() {
+fn shared_models_open_on_what_they_hold() {
     for model in [
         "bijoutier/BOUTIQUEbijoutier.obj",
         "cornell_variants/CornellBox-Suzanne-lit.obj",
@@ -744,4 +744,17 @@ fn shared_models_open_from_the_front_not_from_above() {
             "{model}: {camera:?}"
         );
     }
+    // The Dabrović atrium, also unlit: from outside under the sky only its roof and outer
+    // walls show, so it opens inside, in its courtyard.
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/models/dabrovic_sponza/sponza.obj");
+    let mut scene =
+        Scene::load(&path, &LoadOptions::default()).expect("the shared models must be present");
+    scene.add_default_lights();
+    let camera = nusselt_core::render::view::default_camera(&scene);
+    let b = scene.bounds();
+    assert!(
+        camera.eye.cmpgt(b.min).all() && camera.eye.cmplt(b.max).all(),
+        "Dabrović: {camera:?}"
+    );
 }

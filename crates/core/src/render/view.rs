@@ -8,7 +8,7 @@
 //! faces, with hits on the model's outer skin (a roof in the sun) counting a quarter, and
 //! the best is taken: from outside along the six axes and eight diagonals,
 //! framing the bounds, and, for a closed room or building whose outside shows only a few
-//! walls, from near its upper corners and from its centre.
+//! walls or its outer skin, from near its upper corners and from its centre.
 
 use glam::DVec3;
 
@@ -20,9 +20,10 @@ use crate::scene::{Camera, Scene};
 const GRID_X: u32 = 24;
 const GRID_Y: u32 = 18;
 
-/// Inside views are tried only when no outside view has this score and shows
-/// [`VARIED_FACES`] lit faces: a model seen whole from outside is the more natural first
-/// view, unless all that is seen from outside is a few walls.
+/// Inside views are tried only when no outside view has this fraction of its rays on lit
+/// surface below the model's skin and shows [`VARIED_FACES`] lit faces: a model seen whole
+/// from outside is the more natural first view, unless all that is seen from outside is a
+/// few walls, or its outer skin (a building's roof and walls, the courtyard hidden).
 const OUTSIDE_ENOUGH: f64 = 0.05;
 
 /// The scene's own camera, or [`choose_camera`].
@@ -37,16 +38,16 @@ pub fn choose_camera(scene: &Scene) -> Camera {
     let tracer = PathTracer::new(scene);
     let mut best: Option<(f64, bool, Camera)> = None;
     for (camera, inside) in candidates(b.min, b.max) {
-        if inside && best.is_some_and(|(s, varied, _)| varied && s >= OUTSIDE_ENOUGH) {
+        if inside && best.is_some_and(|(_, enough, _)| enough) {
             break;
         }
-        let (lit, faces) = score(&tracer, &camera, (b.min, b.max));
-        let (score, varied) = (
-            lit * (faces as f64 / VARIED_FACES as f64).min(1.0) * plan_weight(&camera),
-            faces >= VARIED_FACES,
+        let seen = score(&tracer, &camera, (b.min, b.max));
+        let (score, enough) = (
+            seen.lit * (seen.faces as f64 / VARIED_FACES as f64).min(1.0) * plan_weight(&camera),
+            seen.faces >= VARIED_FACES && seen.deep >= OUTSIDE_ENOUGH,
         );
         if best.is_none_or(|(s, _, _)| score > s * (1.0 + TIE)) {
-            best = Some((score, varied, camera));
+            best = Some((score, enough, camera));
         }
     }
     best.map(|(_, _, c)| c)
@@ -98,11 +99,20 @@ fn depth_in(eye: DVec3, x: DVec3, (min, max): (DVec3, DVec3)) -> f64 {
     (x - eye).length() - entry
 }
 
-/// Fraction of the grid's rays whose first hit is lit (those on the model's outer skin
-/// counted [`SKIN_WEIGHT`]), and the number of distinct faces the lit hits land on.
-fn score(tracer: &PathTracer, camera: &Camera, bounds: (DVec3, DVec3)) -> (f64, usize) {
+/// What a candidate view's rays see.
+struct Seen {
+    /// Fraction of the rays whose first hit is lit, those on the model's outer skin counted
+    /// [`SKIN_WEIGHT`].
+    lit: f64,
+    /// Fraction of the rays whose first hit is lit and below the skin.
+    deep: f64,
+    /// Distinct faces the lit hits land on.
+    faces: usize,
+}
+
+fn score(tracer: &PathTracer, camera: &Camera, bounds: (DVec3, DVec3)) -> Seen {
     let mut rng = Rng::new(0x5eed, 7);
-    let mut lit = 0.0;
+    let (mut lit, mut deep) = (0.0, 0.0);
     let mut faces = std::collections::BTreeSet::new();
     let diagonal = (bounds.1 - bounds.0).length();
     for j in 0..GRID_Y {
@@ -116,11 +126,17 @@ fn score(tracer: &PathTracer, camera: &Camera, bounds: (DVec3, DVec3)) -> (f64, 
             if let Some(hit) = tracer.first_lit_face(&Ray::new(camera.eye, dir), 2, &mut rng) {
                 let skin = depth_in(camera.eye, hit.x, bounds) < SKIN_DEPTH * diagonal;
                 lit += if skin { SKIN_WEIGHT } else { 1.0 };
+                deep += if skin { 0.0 } else { 1.0 };
                 faces.insert(hit.face);
             }
         }
     }
-    (lit / (GRID_X * GRID_Y) as f64, faces.len())
+    let rays = (GRID_X * GRID_Y) as f64;
+    Seen {
+        lit: lit / rays,
+        deep: deep / rays,
+        faces: faces.len(),
+    }
 }
 
 /// A later candidate must beat the best so far by this fraction of its score (sampling
@@ -300,7 +316,7 @@ mod tests {
             );
             let tracer = PathTracer::new(&scene);
             let b = scene.bounds();
-            let (lit, _) = score(&tracer, &cam, (b.min, b.max));
+            let lit = score(&tracer, &cam, (b.min, b.max)).lit;
             assert!(lit > 0.3, "{lit}");
         }
     }
