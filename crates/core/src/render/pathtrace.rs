@@ -45,8 +45,6 @@ pub struct LitHit {
     pub face: usize,
     /// The point.
     pub x: DVec3,
-    /// The face's normal on the side the ray came from.
-    pub n: DVec3,
 }
 
 /// The scene prepared for path tracing.
@@ -275,8 +273,8 @@ impl<'a> PathTracer<'a> {
     }
 
     /// The ray's first hit when that point is lit
-    /// ([`first_hit_is_lit`](Self::first_hit_is_lit)): the input face it lies on, the point
-    /// and the face's normal on the side the ray came from.
+    /// ([`first_hit_is_lit`](Self::first_hit_is_lit)): the input face it lies on and the
+    /// point.
     pub fn first_lit_face(&self, ray: &Ray, samples: u32, rng: &mut Rng) -> Option<LitHit> {
         let hit = self.bvh.closest_hit(ray, 0.0, f64::INFINITY)?;
         let (face, mut n) = self.tri_face[hit.id as usize];
@@ -287,7 +285,7 @@ impl<'a> PathTracer<'a> {
             n = -n;
         }
         let x = ray.at(hit.t);
-        let lit = LitHit { face, x, n };
+        let lit = LitHit { face, x };
         if self.scene.materials[self.scene.faces[face].material.0 as usize].is_emitter() {
             return Some(lit);
         }
