@@ -19,8 +19,8 @@ use nusselt_core::render::{self, Image};
 use nusselt_core::scene::Rgb;
 use nusselt_core::scene::file::MeshEntry;
 use nusselt_core::solver::{
-    FormFactorConfig, HierarchicalOptions, OptionSet, Problem, ShootingOptions, Solver,
-    SolverConfig, SolverKind, SolverOption, StopCriteria, run_solver,
+    FormFactorConfig, HierarchicalOptions, HierarchicalSolver, OptionSet, Problem, ShootingOptions,
+    Solver, SolverConfig, SolverKind, SolverOption, StopCriteria, run_solver,
 };
 
 #[derive(Args, Debug)]
@@ -527,6 +527,11 @@ fn solver_for(
                 auto_reason = Some(why.clone());
             }
             refined.solver
+        }
+        // Auto's hierarchy from dark shoots a light of few patches first (its direct light
+        // from rows, not links: `hierarchical::direct`).
+        None if asked.is_none() && kind == SolverKind::Hierarchical => {
+            Box::new(HierarchicalSolver::lights_by_rows(problem))
         }
         None => kind.build(problem)?,
     };

@@ -26,6 +26,12 @@ impl Solver for HierarchicalSolver {
             return false;
         }
         let t0 = std::time::Instant::now();
+        if self.light_rows_pending {
+            if !self.shoot_lights(cancel) {
+                return false;
+            }
+            self.light_rows_pending = false;
+        }
         // Links follow the light: refine while the solution still changes much (the
         // first steps), then only once the residual has fallen 8× since the last refine;
         // provisional links are decided anew as soon as their transfer outgrows one ray.
@@ -87,8 +93,9 @@ impl Solver for HierarchicalSolver {
         self.problem.set_lights(lights);
         self.sources_changed();
     }
-    /// Back to the emission alone; the links are kept.
+    /// Back to the emission alone, sent over links again; the links are kept.
     fn reset(&mut self) {
+        self.direct = Vec::new();
         self.emission = self.problem.patch_emission();
         self.reflectance = self.problem.patch_reflectance();
         self.radiosity = self.problem.element_emission();
@@ -256,9 +263,36 @@ impl HierarchicalSolver {
         regional.incoming(&area, &change, &self.reflectance)
     }
 
+    /// Takes the emitting surfaces' direct light as given instead of sending their
+    /// emission over links: `direct` per element is the irradiance over π their emission
+    /// gives it, as a shooting solver's rows of the emitting patches compute it
+    /// ([`crate::solver::handoff`]). Each gather adds it to what the links bring, and the
+    /// links carry only reflected light, so the refinements that follow make no link for
+    /// the emission (on the Crytek atrium, 3.2 M links of four rays each, the larger part
+    /// of the first refinement) and link by the light as it is now, not by the emission.
+    /// An edit of materials or lights, or a reset, sends the emission over links again.
+    ///
+    /// # Panics
+    /// If `direct` does not have one value per element.
+    pub fn set_direct(&mut self, direct: Vec<Rgb>) {
+        assert_eq!(
+            direct.len(),
+            self.problem.mesh.elements.len(),
+            "one direct irradiance an element"
+        );
+        debug_assert!(direct.iter().all(|d| d.is_finite()));
+        self.direct = direct;
+        self.coarse_first = true;
+        self.first_links_by = None;
+        self.pull();
+    }
+
     /// After an edit of materials or lights: the patches' sources and reflectances anew,
-    /// the residual unknown until the next iteration (links kept).
+    /// the residual unknown until the next iteration (links kept; the emission is sent
+    /// over them again, as the direct light taken from the shots is stale).
     fn sources_changed(&mut self) {
+        self.direct = Vec::new();
+        self.pull();
         self.emission = self.problem.patch_emission();
         self.reflectance = self.problem.patch_reflectance();
         self.emitted = self.problem.emitted_power();
