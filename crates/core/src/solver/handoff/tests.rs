@@ -14,6 +14,16 @@ fn cornell(mesh: MeshSpec) -> Problem {
     Problem::new(scene, config).expect("problem")
 }
 
+/// `Σ |a − b| A / Σ |b| A` over the elements of `problem` (channel sums).
+fn distance(a: &[Rgb], b: &[Rgb], problem: &Problem) -> f64 {
+    let (mut diff, mut sum) = (0.0, 0.0);
+    for ((e, a), b) in problem.mesh.elements.iter().zip(a).zip(b) {
+        diff += channel_sum((*a - *b).abs()) * e.area;
+        sum += channel_sum(*b) * e.area;
+    }
+    diff / sum
+}
+
 /// Handed over, the hierarchy starts where the shots left off (the same radiosity, the
 /// unshot fraction as its residual) and converges to the element-to-element solution
 /// (shooting to a residual of 1e-6 on the same mesh, patches of one element) within the
@@ -45,16 +55,8 @@ fn the_hierarchy_goes_on_from_the_shots() {
     while s.residual() > 1e-6 {
         assert!(s.step(&cancel), "stopped at residual {}", s.residual());
     }
-    let mesh = &full.problem().mesh;
-    let (mut diff, mut sum) = (0.0, 0.0);
-    for ((e, a), b) in (mesh.elements.iter())
-        .zip(s.radiosity())
-        .zip(full.radiosity())
-    {
-        diff += channel_sum((*a - *b).abs()) * e.area;
-        sum += channel_sum(*b) * e.area;
-    }
-    assert!(diff / sum < 0.03, "{} from the full solution", diff / sum);
+    let d = distance(s.radiosity(), full.radiosity(), full.problem());
+    assert!(d < 0.03, "{d} from the full solution");
 }
 
 /// Only a scene `auto` solves hierarchically is handed over, and only once the unshot
@@ -153,16 +155,8 @@ fn after_an_edit_the_emission_goes_over_the_links_again() {
     while full.residual() > 1e-6 {
         assert!(full.step(&cancel));
     }
-    let mesh = &full.problem().mesh;
-    let (mut diff, mut sum) = (0.0, 0.0);
-    for ((e, a), b) in (mesh.elements.iter())
-        .zip(s.radiosity())
-        .zip(full.radiosity())
-    {
-        diff += channel_sum((*a - *b).abs()) * e.area;
-        sum += channel_sum(*b) * e.area;
-    }
-    assert!(diff / sum < 0.03, "{} from the full solution", diff / sum);
+    let d = distance(s.radiosity(), full.radiosity(), full.problem());
+    assert!(d < 0.03, "{d} from the full solution");
 }
 
 /// From dark, the lights shot by rows and the rest linked converges to the
@@ -193,14 +187,6 @@ fn the_lights_shot_by_rows_then_linked_converge_to_the_full_solution() {
     while s.residual() > 1e-6 {
         assert!(s.step(&cancel), "stopped at residual {}", s.residual());
     }
-    let mesh = &full.problem().mesh;
-    let (mut diff, mut sum) = (0.0, 0.0);
-    for ((e, a), b) in (mesh.elements.iter())
-        .zip(s.radiosity())
-        .zip(full.radiosity())
-    {
-        diff += channel_sum((*a - *b).abs()) * e.area;
-        sum += channel_sum(*b) * e.area;
-    }
-    assert!(diff / sum < 0.03, "{} from the full solution", diff / sum);
+    let d = distance(s.radiosity(), full.radiosity(), full.problem());
+    assert!(d < 0.03, "{d} from the full solution");
 }
