@@ -14,11 +14,11 @@
 //! coordinates jump (a seam between two faces of one patch), so each drawn vertex has one
 //! uv.
 
-use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
 
 use glam::{DVec3, Vec3};
+use rustc_hash::FxHashMap;
 
 use nusselt_core::formfactor::FormFactorMethod;
 use nusselt_core::geometry::Bvh;
@@ -113,7 +113,7 @@ struct DrawnVertices {
     source_vertex: Vec<u32>,
     /// First drawn vertex of each (mesh vertex, patch); further ones (other uvs) chained
     /// through `next`.
-    first: HashMap<(u32, u32), u32>,
+    first: FxHashMap<(u32, u32), u32>,
     next: Vec<u32>,
     tex: Option<VertexTextures>,
     /// Per drawn vertex: Σ area × element mean, Σ area, Σ element mean, count (for a
@@ -131,7 +131,7 @@ impl DrawnVertices {
             positions: Vec::with_capacity(n),
             patch: Vec::with_capacity(n),
             source_vertex: Vec::with_capacity(n),
-            first: HashMap::with_capacity(n),
+            first: FxHashMap::with_capacity_and_hasher(n, Default::default()),
             next: Vec::with_capacity(n),
             tex: textured.then(VertexTextures::default),
             mean_sum: Vec::new(),
@@ -218,6 +218,28 @@ impl DrawnVertices {
     }
 }
 
+/// The drawn vertices of `mesh`'s display triangles and the index buffer over them.
+fn drawn_vertices(mesh: &Mesh, texturing: Option<&Texturing>) -> (DrawnVertices, Vec<u32>) {
+    let mut drawn = DrawnVertices::new(mesh.vertices.len(), texturing.is_some());
+    let mut indices = Vec::with_capacity(mesh.triangles.len() * 3);
+    for (t, e) in mesh.triangles.iter().zip(&mesh.triangle_element) {
+        let pid = mesh.elements[e.0 as usize].patch.0;
+        let corners = t.map(|v| mesh.vertices[v as usize]);
+        let area = mesh.elements[e.0 as usize].area;
+        for (&v, &p) in t.iter().zip(&corners) {
+            let here = texturing.and_then(|x| x.at(mesh, e.0 as usize, p));
+            let d = drawn.find_or_add(v, pid, p, here);
+            if let Some(x) = texturing
+                && let Some(m) = x.element_texture.get(e.0 as usize)
+            {
+                drawn.count_mean(d, e.0, *m, area);
+            }
+            indices.push(d);
+        }
+    }
+    (drawn, indices)
+}
+
 /// Closed polygons as line-list endpoints (each edge once, the last back to the first).
 fn outlines<P: AsRef<[DVec3]>>(polygons: impl Iterator<Item = P>) -> Vec<[f32; 3]> {
     let mut lines = Vec::new();
@@ -258,23 +280,17 @@ impl Geometry {
     }
 
     fn build(id: u64, mesh: &Mesh, texturing: Option<Texturing>) -> Geometry {
-        let mut drawn = DrawnVertices::new(mesh.vertices.len(), texturing.is_some());
-        let mut indices = Vec::with_capacity(mesh.triangles.len() * 3);
-        for (t, e) in mesh.triangles.iter().zip(&mesh.triangle_element) {
-            let pid = mesh.elements[e.0 as usize].patch.0;
-            let corners = t.map(|v| mesh.vertices[v as usize]);
-            let area = mesh.elements[e.0 as usize].area;
-            for (&v, &p) in t.iter().zip(&corners) {
-                let here = texturing.as_ref().and_then(|x| x.at(mesh, e.0 as usize, p));
-                let d = drawn.find_or_add(v, pid, p, here);
-                if let Some(x) = &texturing
-                    && let Some(m) = x.element_texture.get(e.0 as usize)
-                {
-                    drawn.count_mean(d, e.0, *m, area);
-                }
-                indices.push(d);
-            }
-        }
+        // The outlines are independent of the drawn vertices: built alongside them.
+        let ((drawn, indices), (element_lines, patch_lines)) = rayon::join(
+            || drawn_vertices(mesh, texturing.as_ref()),
+            || {
+                (
+                    outlines(mesh.elements.iter().map(|e| e.corners())),
+                    outlines(mesh.patches.iter().map(|p| &p.polygon)),
+                )
+            },
+        );
+        let mut drawn = drawn;
         let textures = drawn.texture_means();
         let b = mesh.bounds();
         Geometry {
@@ -284,8 +300,8 @@ impl Geometry {
             source_vertex: drawn.source_vertex,
             indices,
             textures,
-            element_lines: outlines(mesh.elements.iter().map(|e| e.corners())),
-            patch_lines: outlines(mesh.patches.iter().map(|p| &p.polygon)),
+            element_lines,
+            patch_lines,
             bvh: OnceLock::new(),
             triangle_element: mesh.triangle_element.iter().map(|e| e.0).collect(),
             element_patch: mesh.elements.iter().map(|e| e.patch.0).collect(),

@@ -114,6 +114,15 @@ impl Bvh {
         Bvh::build_with_masks(input, Arc::new([]))
     }
 
+    /// The same hierarchy with each triangle's id `i` replaced by `map(i)`. Ids are carried,
+    /// never used to build, so this is the hierarchy the new ids would have built (a
+    /// hierarchy over a scene's faces can be built before the faces' groups are known).
+    pub fn relabel(&mut self, map: impl Fn(u32) -> u32) {
+        for t in &mut self.tris {
+            t.id = map(t.id);
+        }
+    }
+
     /// [`Bvh::build`] with cut-outs: a triangle whose `cut` names one of `masks` is a hole
     /// wherever that mask is transparent, for every query. A `cut` naming no mask is ignored.
     pub fn build_with_masks(input: &[TriangleInput], masks: Arc<[AlphaMask]>) -> Bvh {

@@ -2,6 +2,7 @@
 //! cluster of small faces) into patches and elements.
 
 use glam::DVec3;
+use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
 use super::cluster::{cluster_parts, cluster_patch};
@@ -199,7 +200,11 @@ impl Units {
         let mut face_occluder = topo.planar.clone();
         let mut next_occluder = topo.planar_count as u32;
         let mut cluster_count = 0;
-        for faces in clusters {
+        let cluster_polys: Vec<Vec<(Vec<DVec3>, usize)>> = clusters
+            .par_iter()
+            .map(|faces| cluster_parts(scene, topo, &small.outline, faces))
+            .collect();
+        for (faces, parts) in clusters.into_iter().zip(cluster_polys) {
             if faces.len() > 1 {
                 cluster_count += 1;
                 let planar = topo.planar[faces[0] as usize];
@@ -211,9 +216,7 @@ impl Units {
                     next_occluder += 1;
                 }
             }
-            units.push(Unit::Cluster {
-                parts: cluster_parts(scene, topo, &small.outline, &faces),
-            });
+            units.push(Unit::Cluster { parts });
         }
         Units {
             units,
@@ -234,14 +237,23 @@ fn large_pieces(
     let mut pieces = Vec::new();
     let mut small = Small::default();
     let mut surface_count = 0;
-    for members in topo.planar_members() {
+    let planar = topo.planar_members();
+    // The outlines, each a walk of its surface's edges, are independent of one another.
+    let outlines: Vec<Option<Vec<DVec3>>> = planar
+        .par_iter()
+        .map(|members| {
+            let flat = topo.normal[members[0] as usize] != DVec3::ZERO;
+            (flat && members.len() > 1)
+                .then(|| topo.convex_outline(scene, members))
+                .flatten()
+        })
+        .collect();
+    for (members, outline) in planar.into_iter().zip(outlines) {
         let f0 = members[0] as usize;
         if topo.normal[f0] == DVec3::ZERO {
             continue;
         }
-        if members.len() > 1
-            && let Some(poly) = topo.convex_outline(scene, &members)
-        {
+        if let Some(poly) = outline {
             surface_count += 1;
             if polygon::area(&poly) >= 0.5 * patch_area {
                 pieces.push(footprint::Piece { poly, face: f0 });

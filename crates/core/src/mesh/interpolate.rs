@@ -182,8 +182,15 @@ impl Mesh {
             let q = (p / eps).round();
             (q.x as i64, q.y as i64, q.z as i64)
         };
-        let mut index: FxHashMap<(u32, Cell), u32> = FxHashMap::default();
-        let mut vertex_group: Vec<u32> = Vec::new();
+        let corners = (self.elements.iter())
+            .map(|e| e.corner_count as usize)
+            .sum();
+        let mut index: FxHashMap<(u32, Cell), u32> =
+            FxHashMap::with_capacity_and_hasher(corners, Default::default());
+        let mut vertex_group: Vec<u32> = Vec::with_capacity(corners);
+        self.vertices.reserve(corners);
+        self.triangles.reserve(2 * self.elements.len());
+        self.triangle_element.reserve(2 * self.elements.len());
         for (ei, &group) in element_group.iter().enumerate() {
             for k in 0..self.elements[ei].corner_count as usize {
                 let p = self.elements[ei].corners[k];

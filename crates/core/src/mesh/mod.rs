@@ -160,7 +160,7 @@ pub fn estimated_elements(scene: &Scene, size: f64) -> f64 {
 /// [`element_size_for_budget`]): the mesh of a scene with more faces than its budget.
 pub fn element_size_for_excess(scene: &Scene, extra: f64) -> f64 {
     let sides = if scene.two_sided { 2.0 } else { 1.0 };
-    let weighted: Vec<f64> = cut_areas(scene)
+    let mut weighted: Vec<f64> = cut_areas(scene)
         .into_iter()
         .filter(|a| a.is_finite() && *a > 0.0)
         .collect();
@@ -168,13 +168,19 @@ pub fn element_size_for_excess(scene: &Scene, extra: f64) -> f64 {
     if weighted.is_empty() || diag.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return 1.0;
     }
+    // Largest first, with running sums: the faces cut at size s are a prefix, so each
+    // step of the search costs a binary search, not a pass over every face.
+    weighted.sort_unstable_by(|a, b| b.total_cmp(a));
+    let prefix: Vec<f64> = std::iter::once(0.0)
+        .chain(weighted.iter().scan(0.0, |sum, a| {
+            *sum += a;
+            Some(*sum)
+        }))
+        .collect();
     let excess = |s: f64| -> f64 {
         let s2 = s * s;
-        sides
-            * weighted
-                .iter()
-                .map(|a| (a / s2 - 1.0).max(0.0))
-                .sum::<f64>()
+        let cut = weighted.partition_point(|&a| a > s2);
+        sides * (prefix[cut] / s2 - cut as f64).max(0.0)
     };
     let (mut lo, mut hi) = (diag * 1e-9, diag);
     for _ in 0..100 {
@@ -437,21 +443,24 @@ impl Mesh {
         scene: &Scene,
         keep: impl Fn(&crate::scene::Face) -> bool,
     ) -> (Vec<TriangleInput>, Vec<usize>) {
-        let mut out = Vec::new();
-        let mut faces = Vec::new();
-        for (i, f) in scene.faces.iter().enumerate().filter(|(_, f)| keep(f)) {
-            let v = &f.vertices;
-            for t in polygon::triangulate(v) {
-                out.push(TriangleInput {
-                    vertices: [v[t[0]], v[t[1]], v[t[2]]],
-                    id: self.face_occluder[i],
-                    cull_back: false,
-                    cut: None,
-                });
-                faces.push(i);
-            }
-        }
-        (out, faces)
+        face_triangles(scene, keep, |i| self.face_occluder[i])
+    }
+
+    /// The hierarchy over every face's triangles with the scene's cut-outs, each triangle's
+    /// id its face's index. It needs only the scene, so it can be built while the mesh is;
+    /// [`Mesh::blocker_bvh_from`] makes it the blockers' hierarchy.
+    pub fn face_bvh(scene: &Scene) -> Bvh {
+        let (mut input, faces) = face_triangles(scene, |_| true, |i| i as u32);
+        let cuts = scene.cutouts();
+        cuts.mark(scene, &mut input, |i| faces[i]);
+        cuts.bvh(&input)
+    }
+
+    /// [`Mesh::blocker_bvh`] from the scene's [`Mesh::face_bvh`]: its ids relabelled from
+    /// faces to occluder groups.
+    pub fn blocker_bvh_from(&self, mut faces: Bvh) -> Bvh {
+        faces.relabel(|f| self.face_occluder.get(f as usize).copied().unwrap_or(f));
+        faces
     }
 
     /// The hierarchy over [`Mesh::blocker_triangles`] of the faces `keep` accepts, with the
@@ -469,7 +478,7 @@ impl Mesh {
 
     /// [`Mesh::blocker_bvh_where`] of every face.
     pub fn blocker_bvh(&self, scene: &Scene) -> Bvh {
-        self.blocker_bvh_where(scene, |_| true)
+        self.blocker_bvh_from(Mesh::face_bvh(scene))
     }
 
     /// The hierarchy over [`Mesh::display_triangles`], with the scene's cut-outs as holes.
@@ -500,6 +509,30 @@ impl Mesh {
             })
             .collect()
     }
+}
+
+/// The triangles of the faces `keep` accepts, with ids `id(face index)`, and the face of
+/// each triangle.
+fn face_triangles(
+    scene: &Scene,
+    keep: impl Fn(&crate::scene::Face) -> bool,
+    id: impl Fn(usize) -> u32,
+) -> (Vec<TriangleInput>, Vec<usize>) {
+    let mut out = Vec::new();
+    let mut faces = Vec::new();
+    for (i, f) in scene.faces.iter().enumerate().filter(|(_, f)| keep(f)) {
+        let v = &f.vertices;
+        for t in polygon::triangulate(v) {
+            out.push(TriangleInput {
+                vertices: [v[t[0]], v[t[1]], v[t[2]]],
+                id: id(i),
+                cull_back: false,
+                cut: None,
+            });
+            faces.push(i);
+        }
+    }
+    (out, faces)
 }
 
 #[cfg(test)]

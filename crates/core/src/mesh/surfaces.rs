@@ -17,6 +17,7 @@
 use std::collections::VecDeque;
 
 use glam::DVec3;
+use rayon::prelude::*;
 use rustc_hash::{FxHashMap, FxHashSet};
 
 use crate::geometry::polygon;
@@ -97,7 +98,9 @@ impl UnionFind {
 /// vertex.
 fn weld(scene: &Scene, diag: f64) -> Vec<Vec<u32>> {
     let weld = 1e-7 * diag;
-    let mut ids: FxHashMap<(i64, i64, i64), u32> = FxHashMap::default();
+    let corners = scene.faces.iter().map(|f| f.vertices.len()).sum();
+    let mut ids: FxHashMap<(i64, i64, i64), u32> =
+        FxHashMap::with_capacity_and_hasher(corners, Default::default());
     let mut welded = Vec::with_capacity(scene.faces.len());
     for f in &scene.faces {
         let w: Vec<u32> = f
@@ -128,7 +131,7 @@ fn edge_pairs(welded: &[Vec<u32>]) -> Vec<(u32, u32)> {
             }
         }
     }
-    edges.sort_unstable();
+    edges.par_sort_unstable();
     let mut pairs: Vec<(u32, u32)> = Vec::new();
     for list in edges.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
         // A non-manifold edge (more than two faces) joins nothing: ambiguous.
@@ -137,7 +140,7 @@ fn edge_pairs(welded: &[Vec<u32>]) -> Vec<(u32, u32)> {
             pairs.push((list[1].2, list[0].2));
         }
     }
-    pairs.sort_unstable();
+    pairs.par_sort_unstable();
     pairs.dedup();
     pairs
 }
@@ -267,12 +270,15 @@ impl Topology {
         let diag = scene.bounds().diagonal().max(1e-300);
         let welded = weld(scene, diag);
         let normal: Vec<DVec3> = faces
-            .iter()
+            .par_iter()
             .map(|f| polygon::normal(&f.vertices).unwrap_or(DVec3::ZERO))
             .collect();
-        let area: Vec<f64> = faces.iter().map(|f| polygon::area(&f.vertices)).collect();
+        let area: Vec<f64> = faces
+            .par_iter()
+            .map(|f| polygon::area(&f.vertices))
+            .collect();
         let centroid: Vec<DVec3> = faces
-            .iter()
+            .par_iter()
             .map(|f| polygon::centroid(&f.vertices))
             .collect();
         let pairs = edge_pairs(&welded);

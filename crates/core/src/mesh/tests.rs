@@ -232,3 +232,82 @@ fn a_budget_spec_refines_the_budget_mesh() {
     assert_eq!(fine.base_count(), base.base_count());
     assert!(fine.elements.len() > base.elements.len());
 }
+
+/// The blockers' hierarchy built over the faces and relabelled to occluder groups answers
+/// every ray as the one built with the groups' ids: same hit, same distance, same id.
+#[test]
+fn the_relabelled_face_hierarchy_is_the_blockers_hierarchy() {
+    use crate::geometry::{Ray, Rng};
+    // A floor and a ceiling of two triangles each (one planar group apiece) and a small
+    // cube between them (a cluster).
+    let mut obj = String::from(
+        "v 0 0 0\nv 2 0 0\nv 2 0 2\nv 0 0 2\nv 0 2 0\nv 2 2 0\nv 2 2 2\nv 0 2 2\n\
+         f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\n",
+    );
+    let c = [0.9, 1.1];
+    for (x, y, z) in (0..8).map(|k| (c[k & 1], c[(k >> 1) & 1], c[k >> 2])) {
+        obj += &format!("v {x} {y} {z}\n");
+    }
+    for f in [
+        [1, 3, 4, 2],
+        [5, 6, 8, 7],
+        [1, 2, 6, 5],
+        [3, 7, 8, 4],
+        [1, 5, 7, 3],
+        [2, 4, 8, 6],
+    ] {
+        obj += &format!("f {} {} {} {}\n", f[0] + 8, f[1] + 8, f[2] + 8, f[3] + 8);
+    }
+    let scene =
+        Scene::from_obj_str("groups.obj", &obj, &[], &LoadOptions::default()).expect("scene");
+    let mesh = Mesh::build(&scene, &MeshSpec::element(0.5)).expect("mesh");
+    // Groups are not face indices, so a relabelling left undone would show.
+    let moved = (mesh.face_occluder.iter().enumerate()).filter(|&(f, &g)| g != f as u32);
+    assert!(moved.count() > 0, "every face is its own group");
+    let direct = mesh.blocker_bvh_where(&scene, |_| true);
+    let relabelled = mesh.blocker_bvh(&scene);
+    let b = scene.bounds();
+    let mut rng = Rng::new(7, 0);
+    let mut hits = 0;
+    for _ in 0..4000 {
+        let at = |rng: &mut Rng| {
+            b.min
+                + (b.max - b.min) * glam::DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64())
+        };
+        let (from, to) = (at(&mut rng), at(&mut rng));
+        let Some(dir) = (to - from).try_normalize() else {
+            continue;
+        };
+        let ray = Ray::new(from, dir);
+        let (x, y) = (
+            direct.closest_hit(&ray, 0.0, f64::INFINITY),
+            relabelled.closest_hit(&ray, 0.0, f64::INFINITY),
+        );
+        assert_eq!(x.map(|h| (h.t, h.id)), y.map(|h| (h.t, h.id)));
+        hits += usize::from(x.is_some());
+    }
+    assert!(hits > 500, "{hits} hits");
+}
+
+/// The size for an excess is where the plain sum `Σ max(0, k A_f / s² − 1)` over the faces
+/// (both sides of a two-sided scene) reaches it: the search's running sums over the faces
+/// sorted by area give the same sum.
+#[test]
+fn the_size_for_an_excess_gives_that_excess() {
+    use crate::geometry::polygon;
+    let scene = cornell();
+    let sides = if scene.two_sided { 2.0 } else { 1.0 };
+    let plain = |s: f64| -> f64 {
+        let per_face = scene.faces.iter().map(|f| {
+            let convex_quad = f.vertices.len() == 4 && polygon::is_convex(&f.vertices);
+            let k = if convex_quad { 1.0 } else { 2.0 };
+            (k * polygon::area(&f.vertices) / (s * s) - 1.0).max(0.0)
+        });
+        sides * per_face.sum::<f64>()
+    };
+    for extra in [10.0, 200.0, 5000.0] {
+        let s = element_size_for_excess(&scene, extra);
+        let got = plain(s);
+        assert!((got - extra).abs() <= 1e-6 * extra, "{extra}: {got} at {s}");
+    }
+}

@@ -26,6 +26,7 @@ pub mod gallery;
 pub mod gltf;
 pub mod lights;
 mod maps;
+mod obj_scan;
 mod specular;
 pub mod texture;
 #[cfg(test)]

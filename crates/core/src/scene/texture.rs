@@ -402,8 +402,9 @@ fn signed_area(t: [DVec2; 3]) -> f64 {
 /// Calls `f(x, y, area)` for each unit cell [x, x + 1] × [y, y + 1] that triangle `tri`
 /// overlaps, with the area of the overlap; returns the total. A cell the triangle covers
 /// is 1; any other is the triangle clipped to the cell (Sutherland–Hodgman against its
-/// sides, left, right, bottom, top). The first two clips are the same for every cell of a
-/// column, so they are made once per column.
+/// sides, bottom, top, left, right). The first two clips are the same for every cell of a
+/// row, so they are made once per row, and only the cells within the row's clipped part
+/// are visited (about half of the bounding box's are outside a triangle).
 fn for_each_cell(tri: [DVec2; 3], mut f: impl FnMut(i64, i64, f64)) -> f64 {
     let tri = if signed_area(tri) < 0.0 {
         [tri[0], tri[2], tri[1]]
@@ -413,25 +414,25 @@ fn for_each_cell(tri: [DVec2; 3], mut f: impl FnMut(i64, i64, f64)) -> f64 {
     let lo = tri[0].min(tri[1]).min(tri[2]).floor();
     let hi = tri[0].max(tri[1]).max(tri[2]).ceil();
     let inside = |p: DVec2| (0..3).all(|i| cross(tri[(i + 1) % 3] - tri[i], p - tri[i]) >= 0.0);
-    let xs = lo.x as i64..(hi.x as i64).max(lo.x as i64 + 1);
+    let (x_lo, x_hi) = (lo.x as i64, (hi.x as i64).max(lo.x as i64 + 1));
     let whole = Poly::triangle(&tri);
+    let mut row_buf = [Poly::default(), Poly::default()];
     let mut buf = [Poly::default(), Poly::default()];
-    let columns: Vec<Option<Poly>> = xs
-        .clone()
-        .map(|x| clip_slab(&whole, 0, x as f64, &mut buf).copied())
-        .collect();
     let mut total = 0.0;
     for y in lo.y as i64..(hi.y as i64).max(lo.y as i64 + 1) {
-        for (x, column) in xs.clone().zip(&columns) {
+        let Some(row) = clip_slab(&whole, 1, y as f64, &mut row_buf).copied() else {
+            continue;
+        };
+        let xs = row.p[..row.n].iter().map(|p| p.x);
+        let first = (xs.clone().fold(f64::INFINITY, f64::min).floor() as i64).max(x_lo);
+        let last = (xs.fold(f64::NEG_INFINITY, f64::max).ceil() as i64).min(x_hi);
+        for x in first..last.max(first + 1) {
             let c = DVec2::new(x as f64, y as f64);
             let corners = [c, c + DVec2::X, c + DVec2::ONE, c + DVec2::Y];
             let a = if corners.iter().all(|&p| inside(p)) {
                 1.0
             } else {
-                column
-                    .as_ref()
-                    .and_then(|col| clip_slab(col, 1, c.y, &mut buf))
-                    .map_or(0.0, Poly::area)
+                clip_slab(&row, 0, c.x, &mut buf).map_or(0.0, Poly::area)
             };
             if a > 0.0 {
                 f(x, y, a);

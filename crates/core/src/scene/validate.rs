@@ -11,6 +11,7 @@ use std::io::BufReader;
 use glam::{DVec2, DVec3};
 
 use super::maps::{self, MapRequest, MapStatement, Slot};
+use super::obj_scan::{ObjScan, check_numbers, material_key, parse_err, scan_obj};
 use super::specular::{SpecularScan, surface};
 use super::{
     CLAMPED_REFLECTANCE, Face, LoadOptions, MAX_REFLECTANCE, Material, MaterialId, Scene,
@@ -23,25 +24,7 @@ use crate::geometry::polygon;
 /// by 1.4e-3 and stays one face.
 const NON_PLANAR_TOLERANCE: f64 = 2.5e-3;
 
-/// What the OBJ pre-scan learned.
-struct ObjScan {
-    face_lines: Vec<usize>,
-    /// Per face, whether every vertex names a texture coordinate.
-    face_uv: Vec<bool>,
-    mtllibs: Vec<(String, usize)>,
-    /// The material names `usemtl` asks for ([`material_key`]s).
-    usemtl: std::collections::HashSet<String>,
-    warnings: Vec<String>,
-}
-
-fn parse_err(file: &str, line: usize, message: impl Into<String>) -> SceneError {
-    SceneError::Parse {
-        file: file.to_string(),
-        line,
-        message: message.into(),
-    }
-}
-
+/// `words` as `min..=max` finite numbers ([`check_numbers`]).
 fn numbers(
     file: &str,
     line: usize,
@@ -50,35 +33,8 @@ fn numbers(
     min: usize,
     max: usize,
 ) -> Result<Vec<f64>, SceneError> {
-    if words.len() < min || words.len() > max {
-        let want = if min == max {
-            format!("{min}")
-        } else {
-            format!("{min} to {max}")
-        };
-        return Err(parse_err(
-            file,
-            line,
-            format!("'{what}' needs {want} numbers, found {}", words.len()),
-        ));
-    }
-    words
-        .iter()
-        .map(|w| {
-            let x: f64 = w
-                .parse()
-                .map_err(|_| parse_err(file, line, format!("'{what}': '{w}' is not a number")))?;
-            if x.is_finite() {
-                Ok(x)
-            } else {
-                Err(parse_err(
-                    file,
-                    line,
-                    format!("'{what}': '{w}' is not a finite number"),
-                ))
-            }
-        })
-        .collect()
+    check_numbers(file, line, what, words, min, max)?;
+    Ok(words.iter().filter_map(|w| w.parse().ok()).collect())
 }
 
 fn statements(text: &str) -> impl Iterator<Item = (usize, Vec<&str>)> {
@@ -89,98 +45,6 @@ fn statements(text: &str) -> impl Iterator<Item = (usize, Vec<&str>)> {
     })
 }
 
-fn scan_obj(file: &str, text: &str) -> Result<ObjScan, SceneError> {
-    let (mut nv, mut nvt, mut nvn) = (0i64, 0i64, 0i64);
-    let mut scan = ObjScan {
-        face_lines: Vec::new(),
-        face_uv: Vec::new(),
-        mtllibs: Vec::new(),
-        usemtl: Default::default(),
-        warnings: Vec::new(),
-    };
-    let mut unknown: HashMap<String, usize> = HashMap::new();
-    for (line, words) in statements(text) {
-        let args = &words[1..];
-        match words[0] {
-            "v" => {
-                numbers(file, line, "v", args, 3, 4)?;
-                nv += 1;
-            }
-            "vt" => {
-                numbers(file, line, "vt", args, 1, 3)?;
-                nvt += 1;
-            }
-            "vn" => {
-                numbers(file, line, "vn", args, 3, 3)?;
-                nvn += 1;
-            }
-            "f" => {
-                if args.len() < 3 {
-                    return Err(parse_err(
-                        file,
-                        line,
-                        format!("a face needs at least 3 vertices, found {}", args.len()),
-                    ));
-                }
-                for a in args {
-                    let parts: Vec<&str> = a.split('/').collect();
-                    if parts.len() > 3 || parts[0].is_empty() {
-                        return Err(parse_err(file, line, format!("bad face vertex '{a}'")));
-                    }
-                    for (k, (p, count)) in parts.iter().zip([nv, nvt, nvn]).enumerate() {
-                        if p.is_empty() && k > 0 {
-                            continue;
-                        }
-                        let what = ["vertex", "texture coordinate", "normal"][k];
-                        let i: i64 = p.parse().map_err(|_| {
-                            parse_err(file, line, format!("bad {what} index '{p}' in '{a}'"))
-                        })?;
-                        let resolved = if i < 0 { count + i + 1 } else { i };
-                        if i == 0 || resolved < 1 || resolved > count {
-                            return Err(parse_err(
-                                file,
-                                line,
-                                format!(
-                                    "{what} index {i} is out of range (1..={count} defined so far)"
-                                ),
-                            ));
-                        }
-                    }
-                }
-                scan.face_lines.push(line);
-                scan.face_uv.push(
-                    args.iter()
-                        .all(|a| a.split('/').nth(1).is_some_and(|t| !t.is_empty())),
-                );
-            }
-            "mtllib" => {
-                if args.is_empty() {
-                    return Err(parse_err(file, line, "'mtllib' needs a file name"));
-                }
-                scan.mtllibs.push((args.join(" "), line));
-            }
-            "usemtl" => {
-                if args.is_empty() {
-                    return Err(parse_err(file, line, "'usemtl' needs a material name"));
-                }
-                scan.usemtl.insert(material_key(&args.join(" ")));
-            }
-            "o" | "g" | "s" | "l" | "p" | "vp" | "cstype" | "deg" | "curv" | "surf" | "parm"
-            | "end" | "mg" | "lod" | "usemap" | "maplib" | "bevel" | "c_interp" | "d_interp"
-            | "shadow_obj" | "trace_obj" => {}
-            other => *unknown.entry(other.to_string()).or_default() += 1,
-        }
-    }
-    let mut unknown: Vec<_> = unknown.into_iter().collect();
-    unknown.sort();
-    for (k, n) in unknown {
-        scan.warnings.push(format!(
-            "{file}: ignored {n} line(s) with unknown statement '{k}'"
-        ));
-    }
-    Ok(scan)
-}
-
 /// What the MTL pre-scan learned about one material.
 #[derive(Default)]
 struct MtlEntry {
@@ -189,11 +53,6 @@ struct MtlEntry {
     kd: Option<([f64; 3], usize)>,
     diffuse: Option<(MapStatement, usize)>,
     alpha: Option<(MapStatement, usize)>,
-}
-
-/// A material name as a key: tobj keeps the text after `newmtl`, the scan its words.
-fn material_key(name: &str) -> String {
-    name.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
 /// Checks a colour statement (`Kd`, `Ka`, `Ks`, `Ke`, `Tf`): three non-negative numbers.
