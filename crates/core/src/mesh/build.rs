@@ -79,28 +79,19 @@ impl Mesh {
         check_sizes(scene, element_size, patch_size)?;
         let patch_size = patch_size.max(element_size);
         let units = Units::of(scene, topo, patch_size, discontinuity);
-        let mut parts = Parts {
+        let parts = Parts::new(
             scene,
             topo,
-            face_occluder: &units.face_occluder,
+            &units.face_occluder,
             element_size,
             patch_size,
             levels,
-            patches: Vec::new(),
-            base_patch: Vec::new(),
-            next_base: 0,
-            elements: Vec::new(),
-            element_group: Vec::new(),
+        );
+        let parts = if levels.iter().all(|&l| l == 0) {
+            parts.mesh_units_parallel(&units.units, UNIT_CHUNK)
+        } else {
+            parts.mesh_units(&units.units)
         };
-        let sides = if scene.two_sided { 2 } else { 1 };
-        for unit in &units.units {
-            for side in 0..sides {
-                match unit {
-                    Unit::Polygon { poly, face } => parts.polygon(poly, *face, side == 1),
-                    Unit::Cluster { parts: polys } => parts.cluster(polys, side == 1),
-                }
-            }
-        }
         let Parts {
             patches,
             base_patch,
@@ -298,7 +289,89 @@ struct Parts<'a> {
     element_group: Vec<u32>,
 }
 
-impl Parts<'_> {
+/// Units a thread meshes at a time ([`Parts::mesh_units_parallel`]).
+const UNIT_CHUNK: usize = 512;
+
+impl<'a> Parts<'a> {
+    fn new(
+        scene: &'a Scene,
+        topo: &'a Topology,
+        face_occluder: &'a [u32],
+        element_size: f64,
+        patch_size: f64,
+        levels: &'a [u8],
+    ) -> Self {
+        Parts {
+            scene,
+            topo,
+            face_occluder,
+            element_size,
+            patch_size,
+            levels,
+            patches: Vec::new(),
+            base_patch: Vec::new(),
+            next_base: 0,
+            elements: Vec::new(),
+            element_group: Vec::new(),
+        }
+    }
+
+    /// Meshes `units` in order, each on every side.
+    fn mesh_units(mut self, units: &[Unit]) -> Self {
+        let sides = if self.scene.two_sided { 2 } else { 1 };
+        for unit in units {
+            for side in 0..sides {
+                match unit {
+                    Unit::Polygon { poly, face } => self.polygon(poly, *face, side == 1),
+                    Unit::Cluster { parts: polys } => self.cluster(polys, side == 1),
+                }
+            }
+        }
+        self
+    }
+
+    /// [`Parts::mesh_units`] on chunks of `chunk` units in parallel, each numbering its
+    /// patches, elements and base patches from 0, joined in order with their numbers
+    /// offset: the same mesh, as long as no base patch is refined (a base patch's level is
+    /// looked up by its number, which a chunk does not know).
+    fn mesh_units_parallel(self, units: &[Unit], chunk: usize) -> Self {
+        let meshed: Vec<Parts> = units
+            .par_chunks(chunk.max(1))
+            .map(|c| {
+                let empty = Parts::new(
+                    self.scene,
+                    self.topo,
+                    self.face_occluder,
+                    self.element_size,
+                    self.patch_size,
+                    self.levels,
+                );
+                empty.mesh_units(c)
+            })
+            .collect();
+        meshed.into_iter().fold(self, Parts::append)
+    }
+
+    /// `self` followed by `next`, whose numbers started from 0.
+    fn append(mut self, next: Parts) -> Self {
+        let patch_offset = self.patches.len() as u32;
+        let element_offset = self.elements.len() as u32;
+        let base_offset = self.next_base as u32;
+        self.elements.extend(next.elements.into_iter().map(|mut e| {
+            e.patch.0 += patch_offset;
+            e
+        }));
+        self.patches.extend(next.patches.into_iter().map(|mut p| {
+            p.elements = p.elements.start + element_offset..p.elements.end + element_offset;
+            p
+        }));
+        self.base_patch
+            .extend(next.base_patch.iter().map(|b| b + base_offset));
+        self.next_base += next.next_base;
+        self.element_group.extend(next.element_group);
+        self
+    }
+
     /// How many times smaller than the base sizes base patch `base` is meshed.
     fn scale_of(&self, base: usize) -> f64 {
         f64::from(1u32 << self.levels.get(base).copied().unwrap_or(0).min(8))
@@ -605,4 +678,40 @@ fn bisect(a: DVec3, b: DVec3, c: DVec3, target: f64, depth: u32, emit: &mut dyn 
 /// as that number, so the same scene written at another scale meshes the same.
 fn steps(length: f64, size: f64) -> usize {
     ((length / size * (1.0 - 1e-9)).ceil() as usize).clamp(1, 100_000)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::LoadOptions;
+
+    /// Meshing the units in parallel chunks and joining them gives the mesh of one pass in
+    /// unit order: the same patches, elements, base patches and display groups, numbered
+    /// the same.
+    #[test]
+    fn units_meshed_in_chunks_join_into_the_serial_mesh() {
+        let scene = Scene::builtin("cornell", &LoadOptions::default()).expect("cornell");
+        let topo = Topology::new(&scene);
+        let (element_size, patch_size) = (40.0, 160.0);
+        let units = Units::of(&scene, &topo, patch_size, false);
+        assert!(units.units.len() > 6, "{} units", units.units.len());
+        let parts = || {
+            let occluder = &units.face_occluder;
+            Parts::new(&scene, &topo, occluder, element_size, patch_size, &[])
+        };
+        let serial = parts().mesh_units(&units.units);
+        let chunked = parts().mesh_units_parallel(&units.units, 3);
+        assert!(serial.elements.len() > 100 && serial.patches.len() > 10);
+        assert_eq!(
+            format!("{:?}", serial.elements),
+            format!("{:?}", chunked.elements)
+        );
+        assert_eq!(
+            format!("{:?}", serial.patches),
+            format!("{:?}", chunked.patches)
+        );
+        assert_eq!(serial.base_patch, chunked.base_patch);
+        assert_eq!(serial.element_group, chunked.element_group);
+        assert_eq!(serial.next_base, chunked.next_base);
+    }
 }

@@ -401,10 +401,11 @@ fn signed_area(t: [DVec2; 3]) -> f64 {
 
 /// Calls `f(x, y, area)` for each unit cell [x, x + 1] × [y, y + 1] that triangle `tri`
 /// overlaps, with the area of the overlap; returns the total. A cell the triangle covers
-/// is 1; any other is the triangle clipped to the cell (Sutherland–Hodgman against its
-/// sides, bottom, top, left, right). The first two clips are the same for every cell of a
-/// row, so they are made once per row, and only the cells within the row's clipped part
-/// are visited (about half of the bounding box's are outside a triangle).
+/// is 1 (its four corners lie within the triangle's spans on the row's two lines); any
+/// other is the triangle clipped to the cell (Sutherland–Hodgman against its sides,
+/// bottom, top, left, right). The first two clips are the same for every cell of a row,
+/// so they are made once per row, and only the cells within the row's clipped part are
+/// visited (about half of the bounding box's are outside a triangle).
 fn for_each_cell(tri: [DVec2; 3], mut f: impl FnMut(i64, i64, f64)) -> f64 {
     let tri = if signed_area(tri) < 0.0 {
         [tri[0], tri[2], tri[1]]
@@ -413,7 +414,6 @@ fn for_each_cell(tri: [DVec2; 3], mut f: impl FnMut(i64, i64, f64)) -> f64 {
     };
     let lo = tri[0].min(tri[1]).min(tri[2]).floor();
     let hi = tri[0].max(tri[1]).max(tri[2]).ceil();
-    let inside = |p: DVec2| (0..3).all(|i| cross(tri[(i + 1) % 3] - tri[i], p - tri[i]) >= 0.0);
     let (x_lo, x_hi) = (lo.x as i64, (hi.x as i64).max(lo.x as i64 + 1));
     let whole = Poly::triangle(&tri);
     let mut row_buf = [Poly::default(), Poly::default()];
@@ -426,13 +426,19 @@ fn for_each_cell(tri: [DVec2; 3], mut f: impl FnMut(i64, i64, f64)) -> f64 {
         let xs = row.p[..row.n].iter().map(|p| p.x);
         let first = (xs.clone().fold(f64::INFINITY, f64::min).floor() as i64).max(x_lo);
         let last = (xs.fold(f64::NEG_INFINITY, f64::max).ceil() as i64).min(x_hi);
+        // The cells whose four corners are inside, so covered whole (the triangle is
+        // convex): within the triangle's span on both the row's lines.
+        let whole_cells = match (span(&tri, y as f64), span(&tri, (y + 1) as f64)) {
+            (Some((a0, b0)), Some((a1, b1))) => {
+                (a0.max(a1).ceil() as i64, b0.min(b1).floor() as i64 - 1)
+            }
+            _ => (0, -1),
+        };
         for x in first..last.max(first + 1) {
-            let c = DVec2::new(x as f64, y as f64);
-            let corners = [c, c + DVec2::X, c + DVec2::ONE, c + DVec2::Y];
-            let a = if corners.iter().all(|&p| inside(p)) {
+            let a = if (whole_cells.0..=whole_cells.1).contains(&x) {
                 1.0
             } else {
-                clip_slab(&row, 0, c.x, &mut buf).map_or(0.0, Poly::area)
+                clip_slab(&row, 0, x as f64, &mut buf).map_or(0.0, Poly::area)
             };
             if a > 0.0 {
                 f(x, y, a);
@@ -441,6 +447,26 @@ fn for_each_cell(tri: [DVec2; 3], mut f: impl FnMut(i64, i64, f64)) -> f64 {
         }
     }
     total
+}
+
+/// The x interval where the line at height `y` crosses triangle `tri` (`None` where it
+/// misses it).
+fn span(tri: &[DVec2; 3], y: f64) -> Option<(f64, f64)> {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for i in 0..3 {
+        let (a, b) = (tri[i], tri[(i + 1) % 3]);
+        if (a.y.min(b.y)..=a.y.max(b.y)).contains(&y) {
+            let (x0, x1) = if a.y == b.y {
+                (a.x.min(b.x), a.x.max(b.x))
+            } else {
+                let x = a.x + (y - a.y) / (b.y - a.y) * (b.x - a.x);
+                (x, x)
+            };
+            lo = lo.min(x0);
+            hi = hi.max(x1);
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
 }
 
 /// `poly` clipped to the slab `lo ≤ p[axis] ≤ lo + 1` (the low side first), the clipped
