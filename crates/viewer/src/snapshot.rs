@@ -281,7 +281,7 @@ impl Geometry {
 
     fn build(id: u64, mesh: &Mesh, texturing: Option<Texturing>) -> Geometry {
         // The outlines are independent of the drawn vertices: built alongside them.
-        let ((drawn, indices), (element_lines, patch_lines)) = rayon::join(
+        let ((mut drawn, indices), (element_lines, patch_lines)) = rayon::join(
             || drawn_vertices(mesh, texturing.as_ref()),
             || {
                 (
@@ -290,7 +290,6 @@ impl Geometry {
                 )
             },
         );
-        let mut drawn = drawn;
         let textures = drawn.texture_means();
         let b = mesh.bounds();
         Geometry {

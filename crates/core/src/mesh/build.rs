@@ -316,6 +316,18 @@ impl<'a> Parts<'a> {
         }
     }
 
+    /// No parts yet, with the same settings.
+    fn empty(&self) -> Self {
+        Parts::new(
+            self.scene,
+            self.topo,
+            self.face_occluder,
+            self.element_size,
+            self.patch_size,
+            self.levels,
+        )
+    }
+
     /// Meshes `units` in order, each on every side.
     fn mesh_units(mut self, units: &[Unit]) -> Self {
         let sides = if self.scene.two_sided { 2 } else { 1 };
@@ -337,17 +349,7 @@ impl<'a> Parts<'a> {
     fn mesh_units_parallel(self, units: &[Unit], chunk: usize) -> Self {
         let meshed: Vec<Parts> = units
             .par_chunks(chunk.max(1))
-            .map(|c| {
-                let empty = Parts::new(
-                    self.scene,
-                    self.topo,
-                    self.face_occluder,
-                    self.element_size,
-                    self.patch_size,
-                    self.levels,
-                );
-                empty.mesh_units(c)
-            })
+            .map(|c| self.empty().mesh_units(c))
             .collect();
         meshed.into_iter().fold(self, Parts::append)
     }

@@ -118,6 +118,11 @@ fn blocks(text: &str) -> Vec<Block<'_>> {
         .collect()
 }
 
+/// The words of an OBJ or MTL line, before any `#` (a comment).
+pub(super) fn words(raw: &str) -> std::str::SplitWhitespace<'_> {
+    raw.split('#').next().unwrap_or("").split_whitespace()
+}
+
 /// The statements of `text`, numbered from `first_line`: the words before any `#`, into
 /// a buffer reused from line to line.
 fn for_each_statement<'a>(
@@ -127,9 +132,8 @@ fn for_each_statement<'a>(
 ) -> Result<(), SceneError> {
     let mut words: Vec<&str> = Vec::new();
     for (i, raw) in text.lines().enumerate() {
-        let content = raw.split('#').next().unwrap_or("");
         words.clear();
-        words.extend(content.split_whitespace());
+        words.extend(self::words(raw));
         if !words.is_empty() {
             f(first_line + i, &words)?;
         }
@@ -141,8 +145,7 @@ fn for_each_statement<'a>(
 fn count_vertices(text: &str) -> [i64; 3] {
     let mut n = [0i64; 3];
     for raw in text.lines() {
-        let content = raw.split('#').next().unwrap_or("");
-        match content.split_whitespace().next() {
+        match words(raw).next() {
             Some("v") => n[0] += 1,
             Some("vt") => n[1] += 1,
             Some("vn") => n[2] += 1,

@@ -419,7 +419,11 @@ fn for_each_cell(tri: [DVec2; 3], mut f: impl FnMut(i64, i64, f64)) -> f64 {
     let mut row_buf = [Poly::default(), Poly::default()];
     let mut buf = [Poly::default(), Poly::default()];
     let mut total = 0.0;
+    // The triangle's span on the row's lower line (the upper line's of the row before).
+    let mut below = span(&tri, lo.y);
     for y in lo.y as i64..(hi.y as i64).max(lo.y as i64 + 1) {
+        let above = span(&tri, (y + 1) as f64);
+        let lines = (std::mem::replace(&mut below, above), above);
         let Some(row) = clip_slab(&whole, 1, y as f64, &mut row_buf).copied() else {
             continue;
         };
@@ -428,7 +432,7 @@ fn for_each_cell(tri: [DVec2; 3], mut f: impl FnMut(i64, i64, f64)) -> f64 {
         let last = (xs.fold(f64::NEG_INFINITY, f64::max).ceil() as i64).min(x_hi);
         // The cells whose four corners are inside, so covered whole (the triangle is
         // convex): within the triangle's span on both the row's lines.
-        let whole_cells = match (span(&tri, y as f64), span(&tri, (y + 1) as f64)) {
+        let whole_cells = match lines {
             (Some((a0, b0)), Some((a1, b1))) => {
                 (a0.max(a1).ceil() as i64, b0.min(b1).floor() as i64 - 1)
             }

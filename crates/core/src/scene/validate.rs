@@ -11,7 +11,7 @@ use std::io::BufReader;
 use glam::{DVec2, DVec3};
 
 use super::maps::{self, MapRequest, MapStatement, Slot};
-use super::obj_scan::{ObjScan, check_numbers, material_key, parse_err, scan_obj};
+use super::obj_scan::{ObjScan, check_numbers, material_key, parse_err, scan_obj, words};
 use super::specular::{SpecularScan, surface};
 use super::{
     CLAMPED_REFLECTANCE, Face, LoadOptions, MAX_REFLECTANCE, Material, MaterialId, Scene,
@@ -39,8 +39,7 @@ fn numbers(
 
 fn statements(text: &str) -> impl Iterator<Item = (usize, Vec<&str>)> {
     text.lines().enumerate().filter_map(|(i, raw)| {
-        let content = raw.split('#').next().unwrap_or("");
-        let words: Vec<&str> = content.split_whitespace().collect();
+        let words: Vec<&str> = words(raw).collect();
         (!words.is_empty()).then_some((i + 1, words))
     })
 }
