@@ -315,8 +315,9 @@ impl Geometry {
 
     /// Per-display-vertex values to per-drawn-vertex values.
     pub fn expand(&self, per_vertex: &[Rgb]) -> Vec<[f32; 3]> {
-        self.source_vertex
-            .iter()
+        use rayon::prelude::*;
+        (self.source_vertex.par_iter())
+            .with_min_len(4096)
             .map(|&v| per_vertex[v as usize].as_vec3().to_array())
             .collect()
     }

@@ -27,7 +27,12 @@ impl Mesh {
     /// edge they lie on, so shading has no cracks.
     pub fn vertex_values(&self, element_values: &[Rgb]) -> Vec<Rgb> {
         debug_assert_eq!(element_values.len(), self.elements.len());
+        use rayon::prelude::*;
+        // In parallel: a snapshot of a few hundred thousand vertices is taken several
+        // times a second while the solver waits for it.
         let mut out: Vec<Rgb> = (0..self.vertices.len())
+            .into_par_iter()
+            .with_min_len(4096)
             .map(|v| {
                 let (a, b) = (
                     self.vertex_weight_start[v] as usize,

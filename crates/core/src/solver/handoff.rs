@@ -9,37 +9,34 @@
 //! first refinement and gather, about 13 s. So the viewer shoots until [`HANDOFF_UNSHOT`]
 //! of the power is left, which takes the lights and the brightest surfaces a few seconds,
 //! then goes on hierarchically from the shot solution
-//! ([`HierarchicalSolver::continue_from`]): the image stays the shots' until the first
-//! gather, which starts from the shot light.
+//! ([`HierarchicalSolver::continue_from_shots`]): the image stays the shots' until the
+//! first gather.
 //!
-//! The shots have already computed the lights' direct light, exactly as a row of each
-//! emitting patch gives it; the hierarchy takes it as given ([`emitters_direct`] from the
-//! shots' cached rows, [`HierarchicalSolver::set_direct`]) and links only reflected light
-//! (`render`'s auto does the same from dark, [`HierarchicalSolver::lights_by_rows`]). From dark, its
-//! first refinement links every element to the lights (on the atrium 3.2 M links of four
-//! shadow rays, ill-suited to two small bright spheres that each element sees whole) and
-//! its second links again by the first bounce; handed over, one refinement by the light
-//! as shot does the second's work and the first's is not needed. The direct light, most of
-//! the image, is then the same in the shots' image and the converged one, so the image
-//! shown until the first gather is closer to the converged one too.
+//! The links then carry only the light not yet shot ([`super::hierarchical::remainder`]):
+//! the converged answer is the shots' radiosity plus the unshot light's transport, so
+//! what the shots delivered (the lights' direct light, exactly as the rows give it, and
+//! the first bounces of the brightest surfaces) keeps the rows' accuracy, and the image
+//! shown until the first gather is close to the converged one. Before, the hierarchy took
+//! the lights' direct light from the shots' rows ([`HierarchicalSolver::set_direct`]) and
+//! re-solved all the reflected light over its links: its converged image of the atrium
+//! was 6.6–6.9 % from the shots' image at the handover, in broad smooth regions where a
+//! coarse link spreads its estimate. The link tolerance is the same absolute bound per
+//! link as from dark, so with less light to carry the links are coarser and fewer.
 //!
-//! Measured on the atrium (`nusselt bench --only live`, 2026-12-07, quiet machine, one run
-//! each): from dark, the first gathered image at 17–20 s (12.8 % from the converged one)
-//! and converged at 38.9 s; handed over at 20 % unshot (10 s) with the lights linked, 20 %
-//! from 8 s, 13.4 % from 11 s, 2.0 % at 40 s and converged at 43.1 s. On a machine of the
-//! same kind about half as fast (`--live-seconds 100`, one run each, same day): with the
-//! lights linked, handed over at 17 s, 13.4 % at 20 s, the first gather at 35 s (12.9 %),
-//! converged at 71.1 s, peak 1,775 MB; with the direct light from the rows, handed over at
-//! 20 s, 6.9 % at 20 s and 6.6 % until the first gather at 50 s (0.44 %), converged at
-//! 56.4 s, peak 1,625 MB.
+//! Measured on the atrium (`nusselt bench --only live --live-model
+//! ../shared/models/crytek_sponza/sponza.obj --live-seconds 70`, 2-core AMD EPYC,
+//! 2026-12-08, one run each): with the direct light from the rows and all reflected light
+//! linked, handed over at about 20 s, 6.9 % from the last image at 20 s and until the
+//! first gather at 30–40 s; with only the unshot light linked, handed over at 15–20 s,
+//! 4.4 % at 20 s, the first gather by 30 s (1.8 %), a residual of 1e-3 at 60 s and
+//! converged at 62.6 s, peak 1,632 MB. On the Cornell box handed over at 10 % unshot
+//! (patches of one element), the handed-over answer is 1.1 % from the element-to-element
+//! solution and the hierarchy's from dark 0.7 %: the same bound per link, on less light.
 //!
 //! Only scenes that `auto` would solve hierarchically without an image to show
 //! ([`super::auto::choose`]) are handed over; smaller ones shoot to the end.
 
-use std::sync::atomic::AtomicBool;
-
 use super::auto::{self, RunShape};
-use super::hierarchical::direct::emitters_direct;
 use super::{HierarchicalSolver, Problem, Solver, SolverKind};
 
 /// The unshot fraction at which a large scene's shooting hands over. Measured on the
@@ -74,14 +71,9 @@ pub fn hand_over(solver: Box<dyn Solver>) -> Box<dyn Solver> {
     };
     let unshot = shooting.unshot().to_vec();
     let radiosity = solver.radiosity().to_vec();
-    let (problem, rows) = solver.into_parts();
-    let never = AtomicBool::new(false);
-    let direct = emitters_direct(&problem, &mut rows.unwrap_or_default(), &never);
+    let (problem, _rows) = solver.into_parts();
     let mut next = HierarchicalSolver::new(problem);
-    next.continue_from(&radiosity, &unshot);
-    if let Some(direct) = direct {
-        next.set_direct(direct);
-    }
+    next.continue_from_shots(&radiosity, &unshot);
     Box::new(next)
 }
 

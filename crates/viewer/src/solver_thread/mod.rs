@@ -49,6 +49,10 @@ pub const COMMAND_CAPACITY: usize = 256;
 pub const HISTORY_CAPACITY: usize = 4096;
 /// Shortest time between two published snapshots while shooting.
 pub const PUBLISH_INTERVAL: Duration = Duration::from_millis(15);
+/// Snapshots come no more often than this many times what the last one took to build:
+/// on the 227 k-element atrium one took 25–60 ms on one thread, as long as a fifth of a
+/// shot, and publishing after every shot cost the solve a fifth of its shots.
+pub const PUBLISH_COST_RATIO: u32 = 10;
 
 /// What the UI asks of the solver thread.
 #[derive(Debug)]

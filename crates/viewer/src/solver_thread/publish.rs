@@ -2,7 +2,9 @@
 //! stats, history, teaching data), then waking the UI.
 
 use std::sync::Arc;
-use std::time::Instant;
+
+use rayon::prelude::*;
+use std::time::{Duration, Instant};
 
 use nusselt_core::mesh::PatchId;
 use nusselt_core::scene::Rgb;
@@ -11,6 +13,7 @@ use nusselt_core::solver::Solver;
 use super::super::snapshot::{Geometry, HistoryPoint, Snapshot, Stats};
 use super::texture_job::TextureJob;
 use super::worker::Worker;
+use super::{PUBLISH_COST_RATIO, PUBLISH_INTERVAL};
 
 /// What was published, and when.
 #[derive(Default)]
@@ -19,6 +22,8 @@ pub(super) struct Published {
     pub(super) seq: u64,
     /// When the last snapshot was published.
     pub(super) last: Option<Instant>,
+    /// What building the last snapshot took (on a large mesh, tens of milliseconds).
+    pub(super) cost: Duration,
     /// A material edit was applied and not yet published.
     pub(super) edit_unpublished: bool,
     /// When the latest edit was first published.
@@ -26,6 +31,14 @@ pub(super) struct Published {
 }
 
 impl Published {
+    /// Whether the next snapshot is due: [`PUBLISH_INTERVAL`] after the last one, or
+    /// [`PUBLISH_COST_RATIO`] times what the last one took where that is longer, so that
+    /// snapshots never take more than about a tenth of the solver thread's time.
+    pub(super) fn due(&self) -> bool {
+        let interval = PUBLISH_INTERVAL.max(self.cost * PUBLISH_COST_RATIO);
+        self.last.is_none_or(|t| t.elapsed() >= interval)
+    }
+
     /// Counts a snapshot published at `now`: its sequence number, and when the latest edit
     /// was first published (now, if one waited).
     fn next(&mut self, now: Instant) -> (u64, Option<Instant>) {
@@ -41,6 +54,7 @@ impl Published {
 impl Worker {
     /// Publishes the current state as a [`Snapshot`] and wakes the UI.
     pub(super) fn publish(&mut self) {
+        let start = Instant::now();
         self.refresh_teaching();
         self.refresh_ray_input();
         let Some(snapshot) = self.snapshot() else {
@@ -49,6 +63,7 @@ impl Worker {
         let now = snapshot.published;
         self.latest.publish(Arc::new(snapshot));
         self.published.last = Some(now);
+        self.published.cost = now - start;
         self.dirty = false;
         (self.waker)();
         self.after_publish();
@@ -162,7 +177,10 @@ fn drawn_radiance(solver: &dyn Solver, geometry: &Geometry) -> (Vec<[f32; 3]>, V
     let mesh = &solver.problem().mesh;
     let plain = solver.radiosity();
     let shown = solver.display_radiance();
-    let correction: Vec<Rgb> = shown.iter().zip(plain).map(|(s, b)| *s - *b).collect();
+    let correction: Vec<Rgb> = (shown.par_iter().zip(plain))
+        .with_min_len(4096)
+        .map(|(s, b)| *s - *b)
+        .collect();
     let radiance = geometry.expand(&mesh.vertex_values(plain));
     let correction = geometry.expand(&mesh.vertex_values(&correction));
     debug_assert!(radiance.iter().flatten().all(|x| x.is_finite()));

@@ -20,7 +20,7 @@ use super::publish::Published;
 use super::ray_input::RayInput;
 use super::teach::Teaching;
 use super::texture_job::TextureJob;
-use super::{Command, Event, HISTORY_CAPACITY, Latest, PUBLISH_INTERVAL, ThreadConfig, Waker};
+use super::{Command, Event, HISTORY_CAPACITY, Latest, ThreadConfig, Waker};
 
 /// The solver thread's state. The solve's own state is here; the teaching views'
 /// ([`Teaching`]), the ray-traced view's input ([`RayInput`]) and what was published when
@@ -238,9 +238,7 @@ impl Worker {
     }
 
     fn due(&self) -> bool {
-        self.published
-            .last
-            .is_none_or(|t| t.elapsed() >= PUBLISH_INTERVAL)
+        self.published.due()
     }
 
     fn shoot_once(&mut self) {
@@ -295,8 +293,8 @@ impl Worker {
         }
         history.push(point);
         self.dirty = true;
-        // The first steps and single steps show at once; later ones at most every
-        // PUBLISH_INTERVAL, or when the solve just ended.
+        // The first steps and single steps show at once; later ones when due
+        // (`Published::due`), or when the solve just ended.
         if point.steps <= 3 || self.due() || !self.wants_to_shoot() {
             self.publish();
         }

@@ -49,6 +49,7 @@ pub mod direct;
 pub mod directional;
 pub mod flatlet;
 pub mod link;
+pub mod remainder;
 pub mod tree;
 
 mod solver_impl;
@@ -108,6 +109,9 @@ pub struct HierarchicalSolver {
     /// Per element, the irradiance over π the emitting surfaces' emission gives it, taken
     /// as computed ([`Self::set_direct`]); empty while the emission is sent over links.
     direct: Vec<Rgb>,
+    /// The shots' state the links go on from, sending only the unshot light
+    /// ([`remainder`]); `None` while the links carry all reflected light.
+    shot_base: Option<remainder::ShotBase>,
     /// The next refinement is the first with the direct light given, to a coarser tolerance.
     coarse_first: bool,
     /// The first step shoots the lights' rows first ([`Self::lights_by_rows`]).
@@ -156,6 +160,7 @@ impl HierarchicalSolver {
             first_links_by: None,
             radiosity: Vec::new(),
             direct: Vec::new(),
+            shot_base: None,
             coarse_first: false,
             light_rows_pending: false,
             change: Vec::new(),
@@ -412,10 +417,14 @@ impl HierarchicalSolver {
             let leaf = self.tree.leaf[e] as usize;
             let p = el.patch.0 as usize;
             let mut gathered = down[leaf] * self.gain.get(e).copied().unwrap_or(1.0);
-            if let Some(d) = self.direct.get(e) {
-                gathered += *d;
-            }
-            let new = self.problem.element_source(e) + self.reflectance[p] * gathered;
+            let new = if let Some(base) = &self.shot_base {
+                base.held[e] + self.reflectance[p] * gathered
+            } else {
+                if let Some(d) = self.direct.get(e) {
+                    gathered += *d;
+                }
+                self.problem.element_source(e) + self.reflectance[p] * gathered
+            };
             debug_assert!(new.is_finite());
             self.change[e] = new - self.radiosity[e];
             residual += channel_sum(self.change[e]) * el.area;
@@ -427,7 +436,7 @@ impl HierarchicalSolver {
 
     /// Node radiosities from the elements' (area averages, children before parents): what
     /// each node sends over its links, less the emission where its light is given
-    /// ([`Self::set_direct`]).
+    /// ([`Self::set_direct`]), or less the light already shot ([`remainder`]).
     fn pull(&mut self) {
         let nodes = &self.tree.nodes;
         if self.node_b.len() != nodes.len() {
@@ -438,7 +447,9 @@ impl HierarchicalSolver {
             let node = &nodes[n];
             self.node_b[n] = if node.is_leaf() {
                 let e = self.tree.order[node.first as usize] as usize;
-                if self.direct.is_empty() {
+                if let Some(base) = &self.shot_base {
+                    self.radiosity[e] - base.shot[e]
+                } else if self.direct.is_empty() {
                     self.radiosity[e]
                 } else {
                     let emission = self.problem.material_of(mesh.elements[e].patch).emission;
@@ -483,6 +494,10 @@ impl HierarchicalSolver {
             + self.tree.bytes()
             + self.node_b.len() * 24
             + self.direct.capacity() * 24
+            + self
+                .shot_base
+                .as_ref()
+                .map_or(0, |b| (b.held.capacity() + b.shot.capacity()) * 24)
             + self.tree.clusters.len() * std::mem::size_of::<directional::Sh9>()
     }
 }

@@ -66,9 +66,11 @@ impl Solver for HierarchicalSolver {
     /// ([`HierarchicalSolver::missing_per_patch`]) where the configuration asks for it, as
     /// for shooting; before the first iteration from the emission, so the first view is lit.
     fn display_radiance(&self) -> Vec<Rgb> {
+        use rayon::prelude::*;
         let missing = self.missing_per_patch();
         let elements = &self.problem.mesh.elements;
-        (self.radiosity.iter().zip(elements))
+        (self.radiosity.par_iter().zip(elements))
+            .with_min_len(4096)
             .map(|(b, e)| {
                 let p = e.patch.0 as usize;
                 (*b + self.reflectance[p] * missing[p]).max(Rgb::ZERO)
@@ -96,6 +98,7 @@ impl Solver for HierarchicalSolver {
     /// Back to the emission alone, sent over links again; the links are kept.
     fn reset(&mut self) {
         self.direct = Vec::new();
+        self.shot_base = None;
         self.emission = self.problem.patch_emission();
         self.reflectance = self.problem.patch_reflectance();
         self.radiosity = self.problem.element_emission();
@@ -292,6 +295,7 @@ impl HierarchicalSolver {
     /// over them again, as the direct light taken from the shots is stale).
     fn sources_changed(&mut self) {
         self.direct = Vec::new();
+        self.shot_base = None;
         self.pull();
         self.emission = self.problem.patch_emission();
         self.reflectance = self.problem.patch_reflectance();

@@ -66,10 +66,11 @@ impl ProgressiveSolver {
 
     /// `max(B_j + ρ_j G_p, 0)` per element, `G_p` the ambient term of its patch.
     pub(super) fn shown_with(&self, per_patch: &[Rgb]) -> Vec<Rgb> {
-        self.radiosity
-            .iter()
+        use rayon::prelude::*;
+        (self.radiosity.par_iter())
             .zip(&self.element_rho)
             .zip(&self.problem.mesh.elements)
+            .with_min_len(4096)
             .map(|((b, rho), e)| (*b + *rho * per_patch[e.patch.0 as usize]).max(Rgb::ZERO))
             .collect()
     }
