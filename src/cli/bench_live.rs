@@ -98,7 +98,8 @@ pub fn live(out: &Path, models: &[PathBuf], solver: Option<&str>, limit: f64) ->
         write_rows(&mut csv, &mut summary, &run)?;
         save_images(out, &run)?;
         series.push(Series {
-            label: format!("{} ({})", run.model, run.solver),
+            // The plot's font has no arrow.
+            label: format!("{} ({})", run.model, run.solver.replace(" → ", ", then ")),
             points: errors(&run).into_iter().map(|(t, _, e)| (t, e)).collect(),
             markers: false,
         });

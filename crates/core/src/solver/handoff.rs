@@ -21,22 +21,28 @@
 //! re-solved all the reflected light over its links: its converged image of the atrium
 //! was 6.6–6.9 % from the shots' image at the handover, in broad smooth regions where a
 //! coarse link spreads its estimate. The link tolerance is the same absolute bound per
-//! link as from dark, so with less light to carry the links are coarser and fewer.
+//! link as from dark, so with less light to carry the links are coarser and fewer. A scene
+//! with a sky, sun or point light is handed over as before (the direct light from the
+//! rows, all reflected light over the links): there the unshot light alone came back too
+//! dark (`remainder`'s module docs).
 //!
 //! Measured on the atrium (`nusselt bench --only live --live-model
 //! ../shared/models/crytek_sponza/sponza.obj --live-seconds 70`, 2-core AMD EPYC,
 //! 2026-12-08, one run each): with the direct light from the rows and all reflected light
 //! linked, handed over at about 20 s, 6.9 % from the last image at 20 s and until the
 //! first gather at 30–40 s; with only the unshot light linked, handed over at 15–20 s,
-//! 4.4 % at 20 s, the first gather by 30 s (1.8 %), a residual of 1e-3 at 60 s and
-//! converged at 62.6 s, peak 1,632 MB. On the Cornell box handed over at 10 % unshot
+//! 4.5 % at 20 s, the first gather between 30 and 40 s (0.6 %), a residual of 1e-3 at
+//! 50.0 s and converged at 51.3 s, peak 1,680 MB. On the Cornell box handed over at 10 % unshot
 //! (patches of one element), the handed-over answer is 1.1 % from the element-to-element
 //! solution and the hierarchy's from dark 0.7 %: the same bound per link, on less light.
 //!
 //! Only scenes that `auto` would solve hierarchically without an image to show
 //! ([`super::auto::choose`]) are handed over; smaller ones shoot to the end.
 
+use std::sync::atomic::AtomicBool;
+
 use super::auto::{self, RunShape};
+use super::hierarchical::direct::emitters_direct;
 use super::{HierarchicalSolver, Problem, Solver, SolverKind};
 
 /// The unshot fraction at which a large scene's shooting hands over. Measured on the
@@ -61,19 +67,38 @@ pub fn ready(problem: &Problem, unshot: f64) -> bool {
         && auto::choose(problem, RunShape::default()).0 == SolverKind::Hierarchical
 }
 
-/// The hierarchical solve that goes on from `solver`'s shot solution, with the emitters'
-/// direct light taken from the shots' rows ([`HierarchicalSolver::set_direct`]; the rows
-/// are dropped then; a light's row no longer cached is computed again); `solver` itself
-/// where it is not shooting.
+/// The hierarchical solve that goes on from `solver`'s shot solution; `solver` itself
+/// where it is not shooting. Its links carry only the unshot light
+/// ([`HierarchicalSolver::continue_from_shots`]) where the scene has no sky, sun or point
+/// light; with them, the emitters' direct light is taken from the shots' rows
+/// ([`HierarchicalSolver::set_direct`]; a light's row no longer cached is computed again)
+/// and the links carry all the reflected light (module docs: why).
 pub fn hand_over(solver: Box<dyn Solver>) -> Box<dyn Solver> {
     let Some(shooting) = solver.shooting() else {
         return solver;
     };
     let unshot = shooting.unshot().to_vec();
     let radiosity = solver.radiosity().to_vec();
-    let (problem, _rows) = solver.into_parts();
+    let (problem, rows) = solver.into_parts();
+    let remainder = problem.external.is_empty();
+    let direct = if remainder {
+        None
+    } else {
+        emitters_direct(
+            &problem,
+            &mut rows.unwrap_or_default(),
+            &AtomicBool::new(false),
+        )
+    };
     let mut next = HierarchicalSolver::new(problem);
-    next.continue_from_shots(&radiosity, &unshot);
+    if remainder {
+        next.continue_from_shots(&radiosity, &unshot);
+    } else {
+        next.continue_from(&radiosity, &unshot);
+        if let Some(direct) = direct {
+            next.set_direct(direct);
+        }
+    }
     Box::new(next)
 }
 

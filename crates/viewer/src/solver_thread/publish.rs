@@ -2,9 +2,9 @@
 //! stats, history, teaching data), then waking the UI.
 
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
-use std::time::{Duration, Instant};
 
 use nusselt_core::mesh::PatchId;
 use nusselt_core::scene::Rgb;
@@ -221,6 +221,24 @@ mod tests {
             residual: 1.0,
             ambient: 0.0,
         }
+    }
+
+    /// A snapshot that took 30 ms to build is followed by the next no sooner than 300 ms
+    /// later; a cheap one (1 ms, as on the Cornell box) by the next after the 15 ms
+    /// interval.
+    #[test]
+    fn snapshots_wait_ten_times_their_cost() {
+        let ago = |ms: u64| Instant::now().checked_sub(Duration::from_millis(ms));
+        let published = |cost_ms: u64, last_ms: u64| Published {
+            last: ago(last_ms),
+            cost: Duration::from_millis(cost_ms),
+            ..Default::default()
+        };
+        assert!(Published::default().due(), "the first is due at once");
+        assert!(!published(30, 100).due());
+        assert!(published(30, 320).due());
+        assert!(!published(1, 5).due());
+        assert!(published(1, 20).due());
     }
 
     /// Ten shots a second for 5 s, then a solver of long steps: its rate is its own steps
