@@ -36,7 +36,7 @@ use glam::DVec3;
 use crate::geometry::bvh::TriangleInput;
 use crate::geometry::polygon;
 use crate::geometry::{Aabb, Bvh};
-use crate::scene::{MaterialId, Scene};
+use crate::scene::{MaterialId, Rgb, Scene};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct PatchId(pub u32);
@@ -403,6 +403,23 @@ impl Mesh {
 
     pub fn patch(&self, id: PatchId) -> &Patch {
         &self.patches[id.0 as usize]
+    }
+
+    /// Area-weighted mean over each patch's elements of a per-element value
+    /// (`Σ v A / A_p`, as shooting keeps a patch's radiosity); 0 for a patch of no area.
+    pub fn patch_means(&self, values: &[Rgb]) -> Vec<Rgb> {
+        (self.patches.iter())
+            .map(|p| {
+                let sum: Rgb = (p.elements.start..p.elements.end)
+                    .map(|e| values[e as usize] * self.elements[e as usize].area)
+                    .sum();
+                if p.area > 0.0 {
+                    sum / p.area
+                } else {
+                    Rgb::ZERO
+                }
+            })
+            .collect()
     }
 
     /// Patches of the unrefined mesh ([`Mesh::base_patch`]): the length of refinement

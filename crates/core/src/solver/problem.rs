@@ -278,7 +278,7 @@ impl Problem {
             let at: Vec<Rgb> = (0..self.mesh.elements.len())
                 .map(|e| self.external.at(e))
                 .collect();
-            patch_means(&self.mesh, &at)
+            self.mesh.patch_means(&at)
         };
     }
 
@@ -427,22 +427,6 @@ impl Problem {
     }
 }
 
-/// Area-weighted mean over each patch's elements of a per-element value.
-fn patch_means(mesh: &Mesh, values: &[Rgb]) -> Vec<Rgb> {
-    (mesh.patches.iter())
-        .map(|p| {
-            let sum: Rgb = (p.elements.start..p.elements.end)
-                .map(|e| values[e as usize] * mesh.elements[e as usize].area)
-                .sum();
-            if p.area > 0.0 {
-                sum / p.area
-            } else {
-                Rgb::ZERO
-            }
-        })
-        .collect()
-}
-
 /// Each element's and patch's mean texture colour (Kd's multiplier): the texture's mean
 /// over the element's area, in texture space, times the element's opaque fraction where
 /// its material has cut-outs. A cut-out element keeps its whole outline as a receiver
@@ -486,7 +470,7 @@ impl TextureMeans {
             Vec::new()
         };
         Self {
-            patch_texture: patch_means(mesh, &element_texture),
+            patch_texture: mesh.patch_means(&element_texture),
             element_texture,
             element_coverage,
         }

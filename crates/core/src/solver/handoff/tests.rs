@@ -15,6 +15,18 @@ fn cornell(mesh: MeshSpec) -> Problem {
     Problem::new(scene, config).expect("problem")
 }
 
+/// Steps `solver` until its residual is at most `residual`; every step must make progress.
+fn step_until<S: Solver + ?Sized>(solver: &mut S, residual: f64) {
+    let cancel = AtomicBool::new(false);
+    while solver.residual() > residual {
+        assert!(
+            solver.step(&cancel),
+            "stopped at residual {}",
+            solver.residual()
+        );
+    }
+}
+
 /// `Σ |a − b| A / Σ |b| A` over the elements of `problem` (channel sums).
 fn distance(a: &[Rgb], b: &[Rgb], problem: &Problem) -> f64 {
     let (mut diff, mut sum) = (0.0, 0.0);
@@ -34,15 +46,10 @@ fn distance(a: &[Rgb], b: &[Rgb], problem: &Problem) -> f64 {
 #[test]
 fn the_hierarchy_goes_on_from_the_shots() {
     let mesh = MeshSpec::sized(50.0, 50.0);
-    let cancel = AtomicBool::new(false);
     let mut full = SolverKind::Shooting.build(cornell(mesh)).expect("shooting");
-    while full.residual() > 1e-6 {
-        assert!(full.step(&cancel));
-    }
+    step_until(full.as_mut(), 1e-6);
     let mut shots = SolverKind::Shooting.build(cornell(mesh)).expect("shooting");
-    while shots.residual() > 0.3 {
-        assert!(shots.step(&cancel));
-    }
+    step_until(shots.as_mut(), 0.3);
     let (radiosity, unshot) = (shots.radiosity().to_vec(), shots.residual());
     let mut s = hand_over(shots);
     assert_eq!(s.name(), "hierarchical");
@@ -53,9 +60,7 @@ fn the_hierarchy_goes_on_from_the_shots() {
         "residual {} after handing over at {unshot}",
         s.residual()
     );
-    while s.residual() > 1e-6 {
-        assert!(s.step(&cancel), "stopped at residual {}", s.residual());
-    }
+    step_until(s.as_mut(), 1e-6);
     let d = distance(s.radiosity(), full.radiosity(), full.problem());
     assert!(d < 0.03, "{d} from the full solution");
 }
@@ -132,9 +137,7 @@ fn after_an_edit_the_emission_goes_over_the_links_again() {
             .expect("a light")
     };
     let mut shots = SolverKind::Shooting.build(cornell(mesh)).expect("shooting");
-    while shots.residual() > 0.3 {
-        assert!(shots.step(&cancel));
-    }
+    step_until(shots.as_mut(), 0.3);
     let mut s = hand_over(shots);
     assert!(s.step(&cancel));
     let id = light(s.problem());
@@ -148,14 +151,10 @@ fn after_an_edit_the_emission_goes_over_the_links_again() {
         .expect("edit")
     };
     edit(s.as_mut());
-    while s.residual() > 1e-6 {
-        assert!(s.step(&cancel), "stopped at residual {}", s.residual());
-    }
+    step_until(s.as_mut(), 1e-6);
     let mut full = SolverKind::Shooting.build(cornell(mesh)).expect("shooting");
     edit(full.as_mut());
-    while full.residual() > 1e-6 {
-        assert!(full.step(&cancel));
-    }
+    step_until(full.as_mut(), 1e-6);
     let d = distance(s.radiosity(), full.radiosity(), full.problem());
     assert!(d < 0.03, "{d} from the full solution");
 }
@@ -169,9 +168,7 @@ fn the_lights_shot_by_rows_then_linked_converge_to_the_full_solution() {
     let mesh = MeshSpec::sized(50.0, 50.0);
     let cancel = AtomicBool::new(false);
     let mut full = SolverKind::Shooting.build(cornell(mesh)).expect("shooting");
-    while full.residual() > 1e-6 {
-        assert!(full.step(&cancel));
-    }
+    step_until(full.as_mut(), 1e-6);
     let mut s = HierarchicalSolver::lights_by_rows(cornell(mesh));
     assert!(s.step(&cancel));
     let lit = |s: &HierarchicalSolver| {
@@ -185,9 +182,7 @@ fn the_lights_shot_by_rows_then_linked_converge_to_the_full_solution() {
         "the first step lit {} elements",
         lit(&s)
     );
-    while s.residual() > 1e-6 {
-        assert!(s.step(&cancel), "stopped at residual {}", s.residual());
-    }
+    step_until(&mut s, 1e-6);
     let d = distance(s.radiosity(), full.radiosity(), full.problem());
     assert!(d < 0.03, "{d} from the full solution");
 }
@@ -204,16 +199,11 @@ fn the_lights_shot_by_rows_then_linked_converge_to_the_full_solution() {
 #[test]
 fn handed_over_with_nothing_unshot_the_answer_is_the_shots() {
     let mesh = MeshSpec::sized(50.0, 50.0);
-    let cancel = AtomicBool::new(false);
     let mut shots = SolverKind::Shooting.build(cornell(mesh)).expect("shooting");
-    while shots.residual() > 1e-4 {
-        assert!(shots.step(&cancel));
-    }
+    step_until(shots.as_mut(), 1e-4);
     let radiosity = shots.radiosity().to_vec();
     let mut s = hand_over(shots);
-    while s.residual() > 1e-7 {
-        assert!(s.step(&cancel), "stopped at residual {}", s.residual());
-    }
+    step_until(s.as_mut(), 1e-7);
     let d = distance(s.radiosity(), &radiosity, s.problem());
     assert!(d < 1e-3, "{d} from the shots' radiosity");
 }

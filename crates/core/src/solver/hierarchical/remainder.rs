@@ -74,17 +74,12 @@ impl HierarchicalSolver {
         // What each patch has shot: its area-mean radiosity less its unshot radiance,
         // spread evenly over it as its rows sent it.
         let mesh = &self.problem.mesh;
-        let mut shot_per_patch = vec![Rgb::ZERO; mesh.patches.len()];
-        for (b, e) in radiosity.iter().zip(&mesh.elements) {
-            shot_per_patch[e.patch.0 as usize] += *b * e.area;
-        }
-        for ((t, u), p) in shot_per_patch.iter_mut().zip(unshot).zip(&mesh.patches) {
-            if p.area > 0.0 {
-                *t = *t / p.area - *u;
-            }
-        }
+        let shot_per_patch = mesh.patch_means(radiosity);
         let shot = (mesh.elements.iter())
-            .map(|e| shot_per_patch[e.patch.0 as usize])
+            .map(|e| {
+                let p = e.patch.0 as usize;
+                shot_per_patch[p] - unshot[p]
+            })
             .collect();
         self.shot_base = Some(ShotBase {
             held: radiosity.to_vec(),
@@ -94,10 +89,5 @@ impl HierarchicalSolver {
         self.first_links_by = None;
         self.coarse_first = false;
         self.pull();
-    }
-
-    /// Whether the links carry only the light not yet shot ([`Self::continue_from_shots`]).
-    pub fn goes_on_from_shots(&self) -> bool {
-        self.shot_base.is_some()
     }
 }

@@ -79,7 +79,9 @@ impl ProgressiveSolver {
 
     /// Light shot so far per patch, `S_p = B̄_p − U_p` (radiance units).
     pub fn shot(&self) -> Vec<Rgb> {
-        patch_mean(&self.problem.mesh, &self.radiosity)
+        self.problem
+            .mesh
+            .patch_means(&self.radiosity)
             .into_iter()
             .zip(&self.unshot)
             .map(|(b, u)| b - *u)
@@ -166,7 +168,8 @@ impl ProgressiveSolver {
             .zip(emission.iter().zip(&rho))
             .map(|(h, (e, r))| *e + *r * *h)
             .collect();
-        let unshot = patch_mean(mesh, &radiosity)
+        let unshot = mesh
+            .patch_means(&radiosity)
             .into_iter()
             .zip(&shot)
             .map(|(b, s)| b - *s)
@@ -199,19 +202,6 @@ struct Carried {
     radiosity: Vec<Rgb>,
     unshot: Vec<Rgb>,
     delivered: Vec<Rgb>,
-}
-
-/// Area-weighted mean of element values per patch (`Σ B A / A_p`, as shooting keeps it).
-fn patch_mean(mesh: &Mesh, values: &[Rgb]) -> Vec<Rgb> {
-    mesh.patches
-        .iter()
-        .map(|p| {
-            let sum = (p.elements.start..p.elements.end)
-                .map(|j| values[j as usize] * mesh.elements[j as usize].area)
-                .fold(Rgb::ZERO, |a, b| a + b);
-            sum / p.area
-        })
-        .collect()
 }
 
 /// `Σ v A` per base patch.

@@ -116,7 +116,7 @@ fn refining_keeps_the_light_delivered() {
         }
     }
     // The unshot radiance is gathered minus shot again.
-    let gathered = patch_mean(new.mesh(), new.radiosity());
+    let gathered = new.mesh().patch_means(new.radiosity());
     for ((u, b), s) in new.unshot().iter().zip(&gathered).zip(new.shot()) {
         assert!(
             close(*u, *b - s, scale),
